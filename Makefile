@@ -1,0 +1,28 @@
+# Two commands: `make demo` (the main job) and `make test`. Both bootstrap .venv first.
+VENV := .venv
+STAMP := $(VENV)/.bootstrapped
+BIN := $(VENV)/bin
+DEMO := out/demo
+
+.PHONY: demo test bench clean
+
+$(STAMP): pyproject.toml scripts/bootstrap.sh
+	scripts/bootstrap.sh
+	touch $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+# Main job: a dof signal of the depth-of-field scene, its integrated image and slices,
+# and the path-traced reference at the same resolution.
+demo: $(STAMP)
+	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,8,8 --spp 32 --seed 1 --out $(DEMO)/signal --overwrite
+	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures
+	$(BIN)/sparselt render --scene dof-sculptures --resolution 128,128 --spp 2048 --out $(DEMO)/reference --overwrite
+	@echo "demo: pictures in $(DEMO)/pictures, reference in $(DEMO)/reference"
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/sampling_throughput.py
+
+clean:
+	rm -rf $(VENV) out

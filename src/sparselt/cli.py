@@ -1,0 +1,151 @@
+"""Command-line interface: ``sparselt <command> --help`` documents each command."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+
+def _shape(text):
+    try:
+        values = tuple(int(part) for part in text.replace("x", ",").split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"shape must be comma-separated integers such as 64,64,8,8, got {text!r}") from None
+    if not values:
+        raise argparse.ArgumentTypeError("shape is empty")
+    return values
+
+
+def _add_camera_options(parser):
+    parser.add_argument("--aperture", type=float, default=None, help="switch the camera to a thin lens of this radius")
+    parser.add_argument("--focus-distance", type=float, default=None, help="focus distance of the thin lens")
+    parser.add_argument("--variant", default="llvm_ad_rgb", choices=("llvm_ad_rgb", "cuda_ad_rgb"), help="Mitsuba variant (default: %(default)s)")
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(prog="sparselt", description="Sparse reconstruction of multidimensional light transport signals.")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    scenes = commands.add_parser("scenes", help="list the built-in scenes", description="List the built-in scenes.")
+    scenes.set_defaults(handler=_scenes)
+
+    sample = commands.add_parser(
+        "sample",
+        help="sample a primary-sample-space signal",
+        description="Sample a primary-sample-space signal: each cell is the mean of --spp jittered path samples. "
+        "An interrupted run resumes when the same command is run again.",
+    )
+    sample.add_argument("--scene", required=True, help="built-in scene name (see 'sparselt scenes') or Mitsuba XML file")
+    sample.add_argument("--kind", required=True, choices=("path", "path-indirect", "dof", "indirect"), help="signal kind")
+    group = sample.add_mutually_exclusive_group(required=True)
+    group.add_argument("--shape", type=_shape, help="resolution of each axis, e.g. 64,64,8,8 (image plane first)")
+    group.add_argument("--preset", choices=("thesis",), help="thesis resolutions: path 100x100x4^8, dof/indirect 250x250x16x16")
+    sample.add_argument("--spp", type=int, default=64, help="jittered samples per cell (default: %(default)s)")
+    sample.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    sample.add_argument("--max-depth", type=int, default=3, help="longest path, Mitsuba convention (default: %(default)s)")
+    sample.add_argument("--out", required=True, help="signal folder to write")
+    sample.add_argument("--overwrite", action="store_true", help="replace an existing signal")
+    sample.add_argument("--nonfinite", choices=("error", "zero"), default="error",
+                        help="NaN/Inf samples: stop with an error (default) or count them and use 0")
+    sample.add_argument("--chunk-cells", type=int, default=None, help="cells per chunk (default: about 4M samples)")
+    sample.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    _add_camera_options(sample)
+    sample.set_defaults(handler=_sample)
+
+    render = commands.add_parser(
+        "render",
+        help="render with Mitsuba's path integrator (the baseline)",
+        description="Plain path tracing with Mitsuba's own path integrator; writes image.exr, image.png and render.json.",
+    )
+    render.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
+    render.add_argument("--spp", type=int, required=True, help="samples per pixel")
+    render.add_argument("--max-depth", type=int, default=3, help="longest path (default: %(default)s)")
+    render.add_argument("--seed", type=int, default=0, help="sampler seed (default: %(default)s)")
+    render.add_argument("--resolution", type=_shape, default=None, help="width,height (default: the scene's)")
+    render.add_argument("--out", required=True, help="output folder")
+    render.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
+    _add_camera_options(render)
+    render.set_defaults(handler=_render)
+
+    show = commands.add_parser("show", help="pictures of a signal", description="Write the integrated image and 2-D slices of a signal as PNGs.")
+    show.add_argument("signal", help="signal folder")
+    show.add_argument("--out", required=True, help="output folder")
+    show.set_defaults(handler=_show)
+    return parser
+
+
+def _scenes(arguments):
+    from .rendering.scenes import get_scene, scene_names
+
+    for name in scene_names():
+        spec = get_scene(name)
+        lens = "thin lens" if spec.camera is not None and spec.camera.thin_lens else "pinhole"
+        print(f"{name:18s} {lens:9s} {spec.description}")
+    return 0
+
+
+def _sample(arguments):
+    from .rendering.acquire import THESIS_PRESETS, AcquisitionConfig, acquire_signal
+
+    shape = THESIS_PRESETS[arguments.kind] if arguments.preset == "thesis" else arguments.shape
+    config = AcquisitionConfig(
+        scene=arguments.scene,
+        kind=arguments.kind,
+        shape=tuple(shape),
+        spp=arguments.spp,
+        seed=arguments.seed,
+        max_depth=arguments.max_depth,
+        aperture=arguments.aperture,
+        focus_distance=arguments.focus_distance,
+        variant=arguments.variant,
+        nonfinite=arguments.nonfinite,
+    )
+    signal = acquire_signal(config, arguments.out, overwrite=arguments.overwrite,
+                            progress=not arguments.no_progress, chunk_cells=arguments.chunk_cells)
+    print(f"wrote {arguments.out}: {signal.kind} signal, axes {', '.join(signal.axes)}, shape {signal.shape}, "
+          f"{signal.meta.get('sampling_seconds', 0):.1f} s of sampling")
+    return 0
+
+
+def _render(arguments):
+    from .provenance import check_output_folder
+    from .rendering.baseline import render_reference
+
+    check_output_folder(arguments.out, overwrite=arguments.overwrite)
+    resolution = arguments.resolution
+    if resolution is not None and len(resolution) != 2:
+        raise ValueError(f"--resolution takes width,height, got {resolution}")
+    _, record = render_reference(arguments.scene, arguments.out, spp=arguments.spp, max_depth=arguments.max_depth,
+                                 seed=arguments.seed, resolution=resolution, aperture=arguments.aperture,
+                                 focus_distance=arguments.focus_distance, variant=arguments.variant)
+    print(f"wrote {arguments.out}: {record['resolution'][0]}x{record['resolution'][1]} at {record['spp']} spp "
+          f"in {record['seconds']:.2f} s ({record['samples_per_second'] / 1e6:.2f} M samples/s)")
+    return 0
+
+
+def _show(arguments):
+    from .signal import load_signal
+    from .visualize import show_signal
+
+    signal = load_signal(arguments.signal)
+    for path in show_signal(signal, arguments.out):
+        print(f"wrote {path}")
+    return 0
+
+
+def main(argv=None):
+    parser = build_parser()
+    arguments = parser.parse_args(argv)
+    try:
+        return arguments.handler(arguments)
+    except (ValueError, PermissionError, FileNotFoundError, RuntimeError) as error:
+        print(f"sparselt {arguments.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"sparselt {arguments.command}: interrupted; finished chunks are kept, rerun to resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

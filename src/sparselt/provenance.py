@@ -1,0 +1,125 @@
+"""Provenance and safe file writing shared by every command that writes output.
+
+Every output folder records its resolved configuration, seed, package versions
+and git revision (:func:`environment_record`). Files are written atomically:
+to a temporary name in the same folder, flushed, then renamed over the final
+name, so an interrupted run never leaves a half-written file under a final name.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+from datetime import datetime, timezone
+from importlib import metadata
+
+PACKAGES = ("sparselt", "numpy", "scipy", "mitsuba", "drjit", "ducc0", "matplotlib", "tqdm")
+
+
+def package_versions():
+    """Installed versions of the packages sparselt depends on (``None`` when absent)."""
+    versions = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def git_revision():
+    """``{'commit': sha, 'dirty': bool}`` of the source checkout, or ``None`` outside git."""
+    folder = os.path.dirname(os.path.abspath(__file__))
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=folder, capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        status = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=folder, capture_output=True, text=True, timeout=10, check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return {"commit": commit, "dirty": bool(status)}
+
+
+def environment_record():
+    """Versions, git revision, platform, command line and time: attach to every output."""
+    return {
+        "versions": package_versions(),
+        "git": git_revision(),
+        "platform": platform.platform(),
+        "command": sys.argv,
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def atomic_write_bytes(path, data):
+    """Write ``data`` to ``path`` atomically (temporary file, fsync, rename)."""
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    descriptor, temporary = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
+    try:
+        with os.fdopen(descriptor, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise
+
+
+def write_json(path, record):
+    """Write a JSON record atomically, pretty-printed."""
+    atomic_write_bytes(path, (json.dumps(record, indent=2, sort_keys=False, default=_json_default) + "\n").encode())
+
+
+def read_json(path):
+    with open(path, encoding="utf-8") as handle:
+        return json.load(handle)
+
+
+def _json_default(value):
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if hasattr(value, "__dict__"):
+        return vars(value)
+    raise TypeError(f"cannot store {type(value).__name__} in JSON")
+
+
+def check_output_folder(path, *, overwrite, marker=None):
+    """Make sure ``path`` can take a new output folder.
+
+    Parameters
+    ----------
+    path : str
+        Output folder.
+    overwrite : bool
+        Allow replacing an existing folder's files.
+    marker : str, optional
+        A file whose presence says the folder holds output of this kind.
+
+    Raises
+    ------
+    ValueError
+        ``path`` is a file, or exists and is not empty without ``overwrite``.
+    PermissionError
+        The folder (or its parent) is not writable.
+    """
+    path = os.fspath(path)
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise ValueError(f"output path {path!r} is an existing file, not a folder")
+    if os.path.isdir(path) and os.listdir(path) and not overwrite:
+        raise ValueError(f"output folder {path!r} already exists and is not empty; pass --overwrite to replace it")
+    parent = os.path.dirname(os.path.abspath(path))
+    probe = path if os.path.isdir(path) else parent
+    while not os.path.exists(probe):
+        probe = os.path.dirname(probe)
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise PermissionError(f"output folder {path!r} is not writable (no write permission on {probe!r})")

@@ -1,0 +1,383 @@
+"""Renderer adapter: the only module of sparselt that imports Mitsuba 3 and Dr.Jit.
+
+It turns a :class:`~sparselt.rendering.scenes.SceneSpec` into Mitsuba objects,
+evaluates the path contribution ``f(S(u))`` for explicit primary-sample-space
+vectors ``u`` laid out by a :class:`~sparselt.rendering.layout.PathLayout`
+(thesis 2.1.6, 3.2.2), and renders baseline images with Mitsuba's own ``path``
+integrator.
+
+Notes
+-----
+Dr.Jit's LLVM backend needs LLVM >= 17 (older versions fail with
+"Cannot select: fminimum"). :func:`find_llvm_library` locates a suitable
+``libLLVM`` before Dr.Jit is imported and exports ``DRJIT_LIBLLVM_PATH``.
+
+Random numbers are a pure function of ``(seed, cell, sample index)``: each
+lane seeds a PCG32 generator with a TEA hash of its cell and sample index, so
+a signal is identical whatever the chunking. The seed and the first cell of a
+chunk enter the kernel as opaque values, so one compiled kernel serves every
+chunk and every seed.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+import sys
+import time
+
+import numpy as np
+
+from .scenes import Camera, Transform
+
+DEFAULT_VARIANT = "llvm_ad_rgb"
+SUPPORTED_VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
+MINIMUM_LLVM = 17
+ONE_MINUS_EPSILON = float(np.float32(1.0) - np.float32(2.0**-24))
+
+_LLVM_HELP = (
+    "Dr.Jit's LLVM backend needs libLLVM {minimum} or newer. On Debian 12 run "
+    "'apt-get install -y libllvm19' (the Makefile's bootstrap does this), or "
+    "'pip install karellen-llvm-core' and set DRJIT_LIBLLVM_PATH to its libLLVM.so."
+)
+
+mi = None
+dr = None
+
+
+def _llvm_version(path):
+    match = re.search(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path))
+    return int(match.group(1)) if match else None
+
+
+def find_llvm_library():
+    """Path of the newest libLLVM >= 17 on this machine, or ``None``.
+
+    Looks in the system library folders, in ``/usr/lib/llvm-*/lib`` and in the
+    running Python's prefix (where ``karellen-llvm-core`` installs).
+    """
+    patterns = [
+        "/usr/lib/x86_64-linux-gnu/libLLVM*.so*",
+        "/usr/lib/aarch64-linux-gnu/libLLVM*.so*",
+        "/usr/lib/llvm-*/lib/libLLVM*.so*",
+        "/usr/lib64/libLLVM*.so*",
+        "/usr/local/lib/libLLVM*.so*",
+        os.path.join(sys.prefix, "lib", "python*", "site-packages", "**", "libLLVM*.so*"),
+    ]
+    candidates = []
+    for pattern in patterns:
+        for path in glob.glob(pattern, recursive=True):
+            version = _llvm_version(path)
+            if version is not None and version >= MINIMUM_LLVM and os.path.isfile(path):
+                candidates.append((version, path))
+    return max(candidates)[1] if candidates else None
+
+
+def initialize(variant=None):
+    """Import Mitsuba with the requested variant and return the module.
+
+    Parameters
+    ----------
+    variant : {'llvm_ad_rgb', 'cuda_ad_rgb'}, optional
+        Default ``llvm_ad_rgb`` (CPU). ``cuda_ad_rgb`` needs an NVIDIA GPU.
+
+    Raises
+    ------
+    ValueError
+        Unsupported variant name.
+    RuntimeError
+        No usable LLVM (with the command that fixes it) or no CUDA device.
+    """
+    global mi, dr
+    variant = variant or os.environ.get("SPARSELT_VARIANT", DEFAULT_VARIANT)
+    if variant not in SUPPORTED_VARIANTS:
+        raise ValueError(f"unsupported Mitsuba variant {variant!r}; choose one of {', '.join(SUPPORTED_VARIANTS)}")
+    if variant.startswith("llvm") and "DRJIT_LIBLLVM_PATH" not in os.environ and dr is None:
+        library = find_llvm_library()
+        if library is None:
+            raise RuntimeError("no libLLVM >= %d found. " % MINIMUM_LLVM + _LLVM_HELP.format(minimum=MINIMUM_LLVM))
+        os.environ["DRJIT_LIBLLVM_PATH"] = library
+    try:
+        import drjit as drjit_module
+        import mitsuba as mitsuba_module
+
+        mitsuba_module.set_variant(variant)
+        probe = mitsuba_module.Float(1.0, 2.0) * 2.0
+        drjit_module.eval(probe)
+    except Exception as error:  # noqa: BLE001  (re-raised with the fix)
+        if variant.startswith("cuda"):
+            raise RuntimeError(f"Mitsuba variant {variant!r} is unavailable ({error}); is there an NVIDIA GPU?") from error
+        raise RuntimeError(f"Mitsuba could not start its LLVM backend ({error}). " + _LLVM_HELP.format(minimum=MINIMUM_LLVM)) from error
+    mi, dr = mitsuba_module, drjit_module
+    return mi
+
+
+def versions():
+    """Versions of the rendering stack, for provenance records."""
+    import drjit as drjit_module
+    import mitsuba as mitsuba_module
+
+    return {"mitsuba": mitsuba_module.__version__, "drjit": drjit_module.__version__}
+
+
+# ---------------------------------------------------------------------------
+# Scene conversion
+# ---------------------------------------------------------------------------
+
+
+def to_mitsuba_transform(transform):
+    """Replay a :class:`Transform` chain with ``mi.ScalarTransform4f``."""
+    result = mi.ScalarTransform4f()
+    for operation in transform.operations:
+        name, arguments = operation[0], operation[1:]
+        if name == "translate":
+            result = result.translate(list(arguments[0]))
+        elif name == "rotate":
+            result = result.rotate(list(arguments[0]), arguments[1])
+        elif name == "scale":
+            result = result.scale(list(arguments[0]))
+        elif name == "look_at":
+            result = result.look_at(origin=list(arguments[0]), target=list(arguments[1]), up=list(arguments[2]))
+        elif name == "matrix":
+            result = result @ mi.ScalarTransform4f([list(row) for row in arguments[0]])
+        else:
+            raise ValueError(f"unknown transform operation {name!r}")
+    return result
+
+
+def to_mitsuba_dict(value):
+    """Recursively replace :class:`Transform` objects by Mitsuba transforms."""
+    if isinstance(value, Transform):
+        return to_mitsuba_transform(value)
+    if isinstance(value, dict):
+        return {key: to_mitsuba_dict(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [to_mitsuba_dict(item) for item in value]
+    return value
+
+
+def sensor_dictionary(camera, width, height):
+    """Mitsuba sensor dictionary for ``camera`` with a box-filtered float film."""
+    sensor = {
+        "type": "thinlens" if camera.thin_lens else "perspective",
+        "fov": camera.fov,
+        "fov_axis": camera.fov_axis,
+        "near_clip": camera.near_clip,
+        "far_clip": camera.far_clip,
+        "to_world": to_mitsuba_transform(camera.to_world),
+        "sampler": {"type": "independent", "sample_count": 1},
+        "film": {
+            "type": "hdrfilm",
+            "width": int(width),
+            "height": int(height),
+            "rfilter": {"type": "box"},
+            "pixel_format": "rgb",
+            "component_format": "float32",
+        },
+    }
+    if camera.thin_lens:
+        sensor["aperture_radius"] = camera.aperture_radius
+        sensor["focus_distance"] = camera.focus_distance
+    else:
+        sensor["focus_distance"] = camera.focus_distance
+    return sensor
+
+
+def camera_from_sensor(sensor):
+    """Read a loaded Mitsuba perspective or thin-lens sensor back into a :class:`Camera`."""
+    parameters = mi.traverse(sensor)
+    matrix = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
+    keys = set(parameters.keys())
+    fov = float(parameters["x_fov"][0]) if "x_fov" in keys else None
+    if fov is None:
+        raise ValueError(f"the scene's sensor ({sensor.class_().name()}) is not a perspective or thin-lens camera")
+    aperture = float(parameters["aperture_radius"][0]) if "aperture_radius" in keys else None
+    focus = float(parameters["focus_distance"][0]) if "focus_distance" in keys else 1000.0
+    near = float(parameters["near_clip"][0]) if "near_clip" in keys else 0.001
+    far = float(parameters["far_clip"][0]) if "far_clip" in keys else 1000.0
+    return Camera(
+        to_world=Transform().matrix(matrix.tolist()),
+        fov=fov,
+        fov_axis="x",
+        near_clip=near,
+        far_clip=far,
+        aperture_radius=aperture if aperture else None,
+        focus_distance=focus,
+    )
+
+
+class MitsubaScene:
+    """A scene loaded into Mitsuba with a sensor at a given resolution.
+
+    Parameters
+    ----------
+    spec : SceneSpec
+        Built-in scene or scene file (see :func:`sparselt.rendering.scenes.get_scene`).
+    resolution : tuple of int
+        Film ``(width, height)``.
+    variant : str, optional
+        Mitsuba variant (default ``llvm_ad_rgb``).
+    """
+
+    def __init__(self, spec, resolution, *, variant=None):
+        initialize(variant)
+        self.spec = spec
+        self.width, self.height = (int(v) for v in resolution)
+        if spec.filename is not None:
+            folder = os.path.dirname(spec.filename)
+            mi.Thread.thread().file_resolver().prepend(folder)
+            self.scene = mi.load_file(spec.filename)
+            sensors = self.scene.sensors()
+            if not sensors:
+                raise ValueError(f"scene file {spec.filename!r} has no sensor to take the camera from")
+            base_camera = camera_from_sensor(sensors[0])
+        else:
+            self.scene = mi.load_dict(to_mitsuba_dict(spec.objects))
+            base_camera = spec.camera
+        self.camera = spec.resolved_camera(base_camera)
+        self.sensor = mi.load_dict(sensor_dictionary(self.camera, self.width, self.height))
+        self._kernels = {}
+
+    # -- primary-sample-space evaluation ------------------------------------
+
+    def _path_contribution(self, layout, samples):
+        """Radiance of the paths defined by explicit PSS samples.
+
+        ``samples`` maps each name in ``layout.dimensions`` to a ``mi.Float``.
+        The estimator follows Mitsuba's ``path`` integrator (MIS with the power
+        heuristic between next-event estimation and BSDF sampling) without
+        Russian roulette; ``layout`` says which vertices sample lights and which
+        emission hits count (see :mod:`sparselt.rendering.layout`).
+        """
+        scene = self.scene
+        context = mi.BSDFContext()
+        position = mi.Point2f(samples["x"], samples["y"])
+        aperture = mi.Point2f(samples["lens_u"], samples["lens_v"]) if layout.thin_lens else mi.Point2f(0.5, 0.5)
+        ray, ray_weight = self.sensor.sample_ray(time=0.0, sample1=0.5, sample2=position, sample3=aperture)
+        throughput = mi.Color3f(ray_weight)
+        result = mi.Color3f(0.0)
+        active = mi.Bool(True)
+
+        interaction = scene.ray_intersect(ray, active)
+        if layout.count_camera_emission:
+            result += throughput * interaction.emitter(scene).eval(interaction, active)
+
+        for index, plan in enumerate(layout.vertices, start=1):
+            active &= interaction.is_valid()
+            bsdf = interaction.bsdf(ray)
+
+            if plan.next_event:
+                light_sample = mi.Point2f(samples[f"light{index}_u"], samples[f"light{index}_v"])
+                active_light = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+                direction_sample, emitter_weight = scene.sample_emitter_direction(interaction, light_sample, True, active_light)
+                active_light &= direction_sample.pdf != 0.0
+                local_direction = interaction.to_local(direction_sample.d)
+                bsdf_value, bsdf_pdf = bsdf.eval_pdf(context, interaction, local_direction, active_light)
+                weight = dr.select(direction_sample.delta, 1.0, _power_heuristic(direction_sample.pdf, bsdf_pdf))
+                result += dr.select(active_light, throughput * weight * bsdf_value * emitter_weight, 0.0)
+
+            direction = mi.Point2f(samples[f"bsdf{index}_u"], samples[f"bsdf{index}_v"])
+            bsdf_sample, bsdf_weight = bsdf.sample(context, interaction, samples[f"lobe{index}"], direction, active)
+            throughput = dr.select(active, throughput * bsdf_weight, 0.0)
+            active &= dr.max(throughput) > 0.0
+            ray = interaction.spawn_ray(interaction.to_world(bsdf_sample.wo))
+            next_interaction = scene.ray_intersect(ray, active)
+
+            if plan.count_emission_hit:
+                emitter_sample = mi.DirectionSample3f(scene, si=next_interaction, ref=interaction)
+                emission = emitter_sample.emitter.eval(next_interaction, active)
+                if plan.next_event:
+                    delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
+                    light_pdf = scene.pdf_emitter_direction(interaction, emitter_sample, active & ~delta)
+                    emission *= _power_heuristic(bsdf_sample.pdf, light_pdf)
+                result += dr.select(active, throughput * emission, 0.0)
+            interaction = next_interaction
+        return result
+
+    def sample_cells(self, layout, grid_shape, first_cell, cell_count, spp, seed):
+        """Mean of ``spp`` jittered samples in each of a run of grid cells.
+
+        Parameters
+        ----------
+        layout : PathLayout
+            Meaning of every PSS dimension; ``layout.axes`` are gridded.
+        grid_shape : tuple of int
+            Resolution of each axis, in ``layout.axes`` order.
+        first_cell, cell_count : int
+            The cells ``first_cell .. first_cell + cell_count - 1`` in C order.
+        spp : int
+            Jittered samples per cell.
+        seed : int
+            Seed in ``[0, 2**32)``.
+
+        Returns
+        -------
+        means : ndarray, shape (cell_count, 3), float32
+            Per-cell mean RGB over the finite samples (non-finite ones count as 0).
+        nonfinite : ndarray, shape (cell_count,), int64
+            Number of samples in each cell whose value was NaN or infinite.
+        """
+        lanes = int(cell_count) * int(spp)
+        index = dr.arange(mi.UInt32, lanes)
+        cell = dr.opaque(mi.UInt32, int(first_cell)) + index // spp
+        sample_index = index % spp
+        seed_value = dr.opaque(mi.UInt32, int(seed))
+
+        generator = mi.PCG32()
+        generator.seed(mi.sample_tea_64(cell, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value))
+
+        strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
+        axis_of = {name: position for position, name in enumerate(layout.axes)}
+        samples = {}
+        for name in layout.dimensions:
+            uniform = generator.next_float32()
+            if name in axis_of:
+                position = axis_of[name]
+                resolution = int(grid_shape[position])
+                coordinate = (cell // int(strides[position])) % resolution
+                uniform = dr.minimum((mi.Float(coordinate) + uniform) * (1.0 / resolution), ONE_MINUS_EPSILON)
+            samples[name] = uniform
+
+        value = self._path_contribution(layout, samples)
+        finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
+        value = dr.select(finite, value, 0.0)
+        scale = 1.0 / spp
+        sums = [dr.block_sum(channel, spp) * scale for channel in (value.x, value.y, value.z)]
+        bad = dr.block_sum(dr.select(finite, mi.UInt32(0), mi.UInt32(1)), spp)
+        dr.eval(sums, bad)
+        means = np.stack([np.asarray(channel, dtype=np.float32) for channel in sums], axis=1)
+        return means, np.asarray(bad, dtype=np.int64)
+
+    # -- baseline -------------------------------------------------------------
+
+    def render_path(self, spp, max_depth, seed=0):
+        """Render with Mitsuba's own ``path`` integrator.
+
+        Returns
+        -------
+        image : ndarray, shape (height, width, 3), float32
+        seconds : float
+            Wall time of the render, synchronised with ``dr.sync_thread``.
+        """
+        integrator = mi.load_dict({"type": "path", "max_depth": int(max_depth), "rr_depth": 1 << 30})
+        dr.sync_thread()
+        start = time.perf_counter()
+        image = mi.render(self.scene, sensor=self.sensor, integrator=integrator, spp=int(spp), seed=int(seed))
+        array = np.array(image, dtype=np.float32)
+        dr.sync_thread()
+        return array, time.perf_counter() - start
+
+
+def _power_heuristic(pdf_a, pdf_b):
+    a2 = dr.square(pdf_a)
+    b2 = dr.square(pdf_b)
+    weight = a2 / (a2 + b2)
+    return dr.select(dr.isfinite(weight), weight, 0.0)
+
+
+def write_exr(path, image):
+    """Write a float32 ``(height, width, 3)`` image as OpenEXR through Mitsuba's Bitmap."""
+    initialize()
+    bitmap = mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB)
+    bitmap.write(str(path))

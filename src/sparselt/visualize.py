@@ -1,0 +1,101 @@
+"""Pictures of signals: the integrated image and 2-D slices (``sparselt show``)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .images import save_figure, srgb_tonemap, write_png
+
+
+def _exposure(image):
+    """Exposure that maps the 99th percentile of luminance to 0.9."""
+    luminance = np.asarray(image, dtype=np.float64).mean(axis=-1)
+    level = np.percentile(luminance, 99) if luminance.size else 0.0
+    return 0.9 / level if level > 0 else 1.0
+
+
+def show_signal(signal, out, *, grid=4):
+    """Write pictures of ``signal`` into folder ``out``.
+
+    Files
+    -----
+    ``image.png``
+        The integrated image (mean over the non-image axes), tone-mapped.
+    ``slices_x_y.png``
+        Image-plane slices at ``grid`` values of the first non-image axis
+        pair (other axes at their middle cell): how the image changes with,
+        for example, the lens position.
+    ``slices_<a>_<b>.png``
+        For each consecutive pair of non-image axes ``(a, b)``: the 2-D
+        slice over ``(a, b)`` at ``grid x grid`` pixels spread over the image,
+        averaged over the remaining axes. This is the per-pixel signal that
+        sparse reconstruction works on (thesis figures 5.2, 7.3).
+
+    Returns
+    -------
+    list of str
+        The files written.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+
+    os.makedirs(out, exist_ok=True)
+    written = []
+    image = signal.image()
+    exposure = _exposure(image)
+    write_png(os.path.join(out, "image.png"), image, exposure=exposure)
+    written.append(os.path.join(out, "image.png"))
+
+    axes = signal.axes
+    extra = list(range(2, len(axes)))
+    if not extra:
+        return written
+    middle = [size // 2 for size in signal.shape]
+
+    # Image-plane slices along the first non-image axis (others at their middle).
+    first = extra[0]
+    values = np.unique(np.linspace(0, signal.shape[first] - 1, grid).round().astype(int))
+    figure, panels = pyplot.subplots(1, len(values), figsize=(3 * len(values), 3.2), squeeze=False)
+    for panel, value in zip(panels[0], values):
+        index = [slice(None), slice(None)] + [middle[axis] for axis in extra]
+        index[first] = value
+        picture = np.asarray(signal.data[tuple(index)], dtype=np.float64).transpose(1, 0, 2)
+        panel.imshow(srgb_tonemap(picture, exposure), origin="upper")
+        panel.set_title(f"{axes[first]} = {value}/{signal.shape[first]}", fontsize=9)
+        panel.axis("off")
+    figure.suptitle(f"{signal.kind}: image-plane slices (other axes at their middle cell)", fontsize=10)
+    path = os.path.join(out, "slices_x_y.png")
+    save_figure(figure, path, dpi=100, bbox_inches="tight")
+    written.append(path)
+
+    # Per-pixel slices over consecutive pairs of non-image axes.
+    width, height = signal.shape[0], signal.shape[1]
+    pixels_x = np.linspace(0, width - 1, grid + 2)[1:-1].round().astype(int)
+    pixels_y = np.linspace(0, height - 1, grid + 2)[1:-1].round().astype(int)
+    for pair_start in range(0, len(extra) - 1, 2):
+        a, b = extra[pair_start], extra[pair_start + 1]
+        others = tuple(axis - 2 for axis in extra if axis not in (a, b))
+        figure, panels = pyplot.subplots(len(pixels_y), len(pixels_x), figsize=(2.2 * len(pixels_x), 2.2 * len(pixels_y)), squeeze=False)
+        for row, y in enumerate(pixels_y):
+            for column, x in enumerate(pixels_x):
+                cube = np.asarray(signal.data[x, y], dtype=np.float64)  # shape = non-image axes + (3,)
+                plane = cube.mean(axis=others) if others else cube
+                luminance = plane.mean(axis=-1)
+                panel = panels[row][column]
+                panel.imshow(luminance.T, origin="lower", cmap="inferno", interpolation="nearest")
+                panel.set_title(f"pixel ({x}, {y})", fontsize=8)
+                panel.set_xticks([])
+                panel.set_yticks([])
+                if row == len(pixels_y) - 1:
+                    panel.set_xlabel(axes[a], fontsize=8)
+                if column == 0:
+                    panel.set_ylabel(axes[b], fontsize=8)
+        figure.suptitle(f"{signal.kind}: luminance over ({axes[a]}, {axes[b]}) per pixel", fontsize=10)
+        path = os.path.join(out, f"slices_{axes[a]}_{axes[b]}.png")
+        save_figure(figure, path, dpi=100, bbox_inches="tight")
+        written.append(path)
+    return written
