@@ -189,13 +189,17 @@ def camera_from_sensor(sensor):
     parameters = mi.traverse(sensor)
     matrix = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
     keys = set(parameters.keys())
-    fov = float(parameters["x_fov"][0]) if "x_fov" in keys else None
+
+    def read(key, default):
+        return float(np.ravel(np.asarray(parameters[key]))[0]) if key in keys else default
+
+    fov = read("x_fov", None)
     if fov is None:
         raise ValueError(f"the scene's sensor ({sensor.class_().name()}) is not a perspective or thin-lens camera")
-    aperture = float(parameters["aperture_radius"][0]) if "aperture_radius" in keys else None
-    focus = float(parameters["focus_distance"][0]) if "focus_distance" in keys else 1000.0
-    near = float(parameters["near_clip"][0]) if "near_clip" in keys else 0.001
-    far = float(parameters["far_clip"][0]) if "far_clip" in keys else 1000.0
+    aperture = read("aperture_radius", None)
+    focus = read("focus_distance", 1000.0)
+    near = read("near_clip", 0.001)
+    far = read("far_clip", 1000.0)
     return Camera(
         to_world=Transform().matrix(matrix.tolist()),
         fov=fov,
@@ -342,9 +346,13 @@ class MitsubaScene:
         value = self._path_contribution(layout, samples)
         finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
         value = dr.select(finite, value, 0.0)
+        invalid = dr.select(finite, mi.UInt32(0), mi.UInt32(1))
+        # One kernel for all outputs: reducing unevaluated channels one by one
+        # would trace and run the whole path kernel once per channel.
+        dr.eval(value, invalid)
         scale = 1.0 / spp
         sums = [dr.block_sum(channel, spp) * scale for channel in (value.x, value.y, value.z)]
-        bad = dr.block_sum(dr.select(finite, mi.UInt32(0), mi.UInt32(1)), spp)
+        bad = dr.block_sum(invalid, spp)
         dr.eval(sums, bad)
         means = np.stack([np.asarray(channel, dtype=np.float32) for channel in sums], axis=1)
         return means, np.asarray(bad, dtype=np.int64)

@@ -1,0 +1,181 @@
+"""Signal folders: atomic chunks, resume after a kill, provenance, and every bad input."""
+
+import json
+import os
+import signal as posix_signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from sparselt import IncompleteSignalError, NonFiniteSampleError, load_signal
+from sparselt.rendering.acquire import AcquisitionConfig, acquire_signal
+from sparselt.rendering.scenes import SceneSpec
+
+PATH_SHAPE = (8, 6, 2, 2, 2, 2, 2, 2, 2, 2)
+
+
+def _config(**changes):
+    values = dict(scene="cornell-box", kind="path", shape=PATH_SHAPE, spp=4, seed=2)
+    values.update(changes)
+    return AcquisitionConfig(**values)
+
+
+def test_folder_round_trip_records_provenance(tmp_path, cornell):
+    memory = acquire_signal(_config(), progress=False, scene_spec=cornell)
+    signal = acquire_signal(_config(), tmp_path / "signal", progress=False, scene_spec=cornell)
+    assert np.array_equal(np.asarray(signal.data), memory.data)
+    assert signal.shape == PATH_SHAPE and signal.data.shape == PATH_SHAPE + (3,)
+    assert signal.kind == "path" and signal.axes[:2] == ("x", "y") and len(signal.axes) == 10
+    meta = signal.meta
+    assert meta["status"] == "complete" and meta["seed"] == 2 and meta["spp"] == 4 and meta["max_depth"] == 3
+    assert meta["scene"] == "cornell-box"
+    for package in ("mitsuba", "drjit", "numpy", "sparselt"):
+        assert meta["provenance"]["versions"][package]
+    assert "git" in meta["provenance"]
+    assert signal.image().shape == (6, 8, 3)
+    assert not os.path.exists(tmp_path / "signal" / "progress.json")
+
+
+def test_image_is_the_mean_over_non_image_axes_transposed(tmp_path, cornell):
+    signal = acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell)
+    data = np.asarray(signal.data, dtype=np.float64)
+    expected = data.reshape(8, 6, -1, 3).mean(axis=2).transpose(1, 0, 2)
+    assert np.allclose(signal.image(rows_per_block=3), expected, rtol=1e-6)
+
+
+def test_existing_signal_needs_overwrite(tmp_path, cornell):
+    acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell)
+    with pytest.raises(ValueError, match="--overwrite"):
+        acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell)
+    replaced = acquire_signal(_config(seed=5), tmp_path / "s", overwrite=True, progress=False, scene_spec=cornell)
+    assert replaced.meta["seed"] == 5
+
+
+def test_non_signal_folder_is_not_touched(tmp_path, cornell):
+    (tmp_path / "thesis.md").write_text("precious")
+    with pytest.raises(ValueError, match="not a signal"):
+        acquire_signal(_config(), tmp_path, progress=False, scene_spec=cornell)
+    assert (tmp_path / "thesis.md").read_text() == "precious"
+
+
+def test_unwritable_output_is_refused(tmp_path, cornell):
+    if os.geteuid() == 0:
+        # root writes anywhere; a path under a regular file is unwritable for everyone.
+        (tmp_path / "file").write_text("x")
+        target = tmp_path / "file" / "signal"
+    else:
+        locked = tmp_path / "locked"
+        locked.mkdir()
+        locked.chmod(0o500)
+        target = locked / "signal"
+    with pytest.raises((ValueError, PermissionError, OSError)):
+        acquire_signal(_config(), target, progress=False, scene_spec=cornell)
+
+
+def test_resume_after_kill_gives_the_same_data(tmp_path):
+    """SIGKILL a real `sparselt sample` run mid-way, check nothing loads, resume, compare."""
+    shape = "24,24,2,2,2,2,2,2,2,2"
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "sparselt.cli", "sample", "--scene", "cornell-box", "--kind", "path",
+               "--shape", shape, "--spp", "8", "--seed", "9", "--out", str(out), "--chunk-cells", "512", "--no-progress"]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    progress_file = out / "progress.json"
+    deadline = time.time() + 120
+    finished = 0
+    while time.time() < deadline and process.poll() is None:
+        try:
+            finished = len(json.loads(progress_file.read_text())["finished_chunks"])
+        except (OSError, ValueError, KeyError):
+            finished = 0
+        if finished >= 5:
+            break
+        time.sleep(0.02)
+    assert process.poll() is None, "the run finished before it could be killed; make the signal larger"
+    process.send_signal(posix_signal.SIGKILL)
+    process.wait()
+    assert 5 <= finished < 288
+    with pytest.raises(IncompleteSignalError, match="resume"):
+        load_signal(out)
+    assert not (out / "data.npy").exists()
+
+    resumed = subprocess.run(command, capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
+    reference = tmp_path / "reference"
+    subprocess.run(command[:command.index("--out") + 1] + [str(reference), "--no-progress"], check=True,
+                   stdout=subprocess.DEVNULL)
+    assert np.array_equal(np.asarray(load_signal(out).data), np.asarray(load_signal(reference).data))
+
+
+def test_resume_with_another_configuration_is_refused(tmp_path, cornell):
+    out = tmp_path / "s"
+    os.makedirs(out)
+    acquire_signal(_config(), out, progress=False, scene_spec=cornell)
+    # Fake an interrupted state of this configuration, then ask for another one.
+    meta = json.loads((out / "meta.json").read_text())
+    meta["status"] = "incomplete"
+    (out / "meta.json").write_text(json.dumps(meta))
+    os.replace(out / "data.npy", out / "data.partial.npy")
+    (out / "progress.json").write_text(json.dumps({"chunk_cells": 100000, "chunk_count": 1, "finished_chunks": [], "nonfinite": {}}))
+    with pytest.raises(ValueError, match="different configuration"):
+        acquire_signal(_config(seed=3), out, progress=False, scene_spec=cornell)
+    # The same configuration resumes.
+    assert acquire_signal(_config(), out, progress=False, scene_spec=cornell).meta["status"] == "complete"
+
+
+def _infinite_light_scene(cornell):
+    objects = dict(cornell.objects)
+    objects["light"] = dict(objects["light"], emitter={"type": "area", "radiance": {"type": "rgb", "value": [1e39, 1.0, 1.0]}})
+    return SceneSpec(name="infinite-light", description="overflowing emitter", objects=objects, camera=cornell.camera)
+
+
+def test_nonfinite_samples_stop_the_run_with_a_count(tmp_path, cornell):
+    scene = _infinite_light_scene(cornell)
+    with pytest.raises(NonFiniteSampleError, match="NaN or infinite samples"):
+        acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=scene)
+    with pytest.raises(IncompleteSignalError):
+        load_signal(tmp_path / "s")
+
+
+def test_nonfinite_samples_counted_and_zeroed_on_request(cornell):
+    signal = acquire_signal(_config(nonfinite="zero"), progress=False, scene_spec=_infinite_light_scene(cornell))
+    assert signal.meta["nonfinite_samples"] > 0
+    assert np.all(np.isfinite(signal.data))
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (dict(spp=0), "spp"),
+        (dict(spp=-3), "spp"),
+        (dict(seed=-1), "seed"),
+        (dict(shape=(8, 8, 4, 4)), "has 4 axes but kind 'path'"),
+        (dict(shape=(8,)), "two image-plane axes"),
+        (dict(shape=(8, 0, 2, 2)), "resolution"),
+        (dict(kind="dof", shape=(8, 8, 4, 4)), "--aperture"),
+        (dict(kind="volumes"), "choose one of"),
+        (dict(max_depth=0), "max_depth"),
+        (dict(nonfinite="ignore"), "nonfinite"),
+    ],
+)
+def test_bad_configuration_is_refused(changes, message, cornell):
+    with pytest.raises(ValueError, match=message):
+        acquire_signal(_config(**changes), progress=False, scene_spec=cornell)
+
+
+def test_unknown_scene_is_refused_with_the_names():
+    with pytest.raises(ValueError, match="cornell-caustics"):
+        acquire_signal(_config(scene="san-miguel"), progress=False)
+
+
+def test_signal_too_large_for_memory_needs_a_path(cornell):
+    # 4.1e9 cells of 12 bytes: 49 GB, more than half the memory of any machine this runs on.
+    with pytest.raises(ValueError, match="give an output path"):
+        acquire_signal(_config(kind="indirect", shape=(2000, 2000, 32, 32)), progress=False, scene_spec=cornell)
+
+
+def test_too_many_cells_are_refused(cornell):
+    with pytest.raises(ValueError, match="2\\*\\*32"):
+        acquire_signal(_config(shape=(1000, 1000, 4, 4, 4, 4, 4, 4, 4, 4)), progress=False, scene_spec=cornell)

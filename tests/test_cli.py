@@ -1,0 +1,90 @@
+"""The `sparselt` command: help, listing, sample -> show, render, and exit codes on bad input."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sparselt.cli import main
+
+
+def run(*arguments):
+    return subprocess.run([sys.executable, "-m", "sparselt.cli", *arguments], capture_output=True, text=True)
+
+
+@pytest.mark.parametrize("command", ["scenes", "sample", "render", "show"])
+def test_every_command_has_help(command):
+    result = run(command, "--help")
+    assert result.returncode == 0 and "usage: sparselt" in result.stdout
+
+
+def test_scenes_lists_the_built_in_scenes(capsys):
+    assert main(["scenes"]) == 0
+    listed = capsys.readouterr().out
+    for name in ("cornell-box", "cornell-caustics", "dof-sculptures", "courtyard"):
+        assert name in listed
+
+
+def test_sample_then_show(tmp_path, capsys):
+    signal = tmp_path / "signal"
+    assert main(["sample", "--scene", "cornell-box", "--kind", "dof", "--shape", "16,12,4,4", "--spp", "4",
+                 "--aperture", "0.1", "--focus-distance", "3.5", "--out", str(signal), "--no-progress"]) == 0
+    meta = json.loads((signal / "meta.json").read_text())
+    assert meta["axes"] == ["x", "y", "lens_u", "lens_v"] and meta["camera"]["aperture_radius"] == 0.1
+    pictures = tmp_path / "pictures"
+    assert main(["show", str(signal), "--out", str(pictures)]) == 0
+    from matplotlib import image
+
+    picture = image.imread(pictures / "image.png")
+    assert picture.shape[:2] == (12, 16) and picture.max() > 0
+    assert (pictures / "slices_x_y.png").exists()
+    assert (pictures / "slices_lens_u_lens_v.png").exists()
+
+
+def test_render_writes_exr_png_and_timing(tmp_path):
+    out = tmp_path / "reference"
+    assert main(["render", "--scene", "cornell-box", "--spp", "16", "--resolution", "24,16", "--out", str(out)]) == 0
+    record = json.loads((out / "render.json").read_text())
+    assert record["seconds"] > 0 and record["spp"] == 16 and record["resolution"] == [24, 16]
+    assert record["provenance"]["versions"]["mitsuba"]
+    from sparselt.rendering import mitsuba_backend
+
+    mi = mitsuba_backend.initialize()
+    exr = np.array(mi.Bitmap(str(out / "image.exr")))
+    assert exr.shape == (16, 24, 3) and exr.dtype == np.float32 and exr.max() > 1.0  # HDR: the light
+    assert (out / "image.png").exists()
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["sample", "--scene", "nowhere", "--kind", "path", "--shape", "4,4"], "cornell-box"),
+        (["sample", "--scene", "cornell-box", "--kind", "path", "--shape", "4,4,2,2"], "has 4 axes"),
+        (["sample", "--scene", "cornell-box", "--kind", "dof", "--shape", "4,4,2,2"], "--aperture"),
+        (["sample", "--scene", "cornell-box", "--kind", "path", "--shape", "4,4", "--max-depth", "1", "--spp", "0"], "spp"),
+        (["render", "--scene", "cornell-box", "--spp", "0"], "spp"),
+        (["render", "--scene", "cornell-box", "--spp", "4", "--aperture", "-1"], "aperture"),
+    ],
+)
+def test_bad_input_exits_non_zero_with_a_clear_message(tmp_path, arguments, message):
+    result = run(*arguments, "--out", str(tmp_path / "out"))
+    assert result.returncode != 0
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_existing_output_needs_overwrite(tmp_path):
+    out = tmp_path / "out"
+    arguments = ["render", "--scene", "cornell-box", "--spp", "2", "--resolution", "8,8", "--out", str(out)]
+    assert run(*arguments).returncode == 0
+    result = run(*arguments)
+    assert result.returncode != 0 and "--overwrite" in result.stderr
+    assert run(*arguments, "--overwrite").returncode == 0
+
+
+def test_show_of_an_incomplete_signal_says_how_to_resume(tmp_path):
+    (tmp_path / "meta.json").write_text(json.dumps({"status": "incomplete"}))
+    result = run("show", str(tmp_path), "--out", str(tmp_path / "pictures"))
+    assert result.returncode != 0 and "resume" in result.stderr
