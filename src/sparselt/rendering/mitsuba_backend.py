@@ -230,7 +230,7 @@ class MitsubaScene:
         self.width, self.height = (int(v) for v in resolution)
         if spec.filename is not None:
             folder = os.path.dirname(spec.filename)
-            mi.Thread.thread().file_resolver().prepend(folder)
+            mi.file_resolver().prepend(folder)
             self.scene = mi.load_file(spec.filename)
             sensors = self.scene.sensors()
             if not sensors:
