@@ -223,7 +223,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     cells = math.prod(config.shape)
     if path is None:
         data = np.empty((cells, 3), dtype=np.float32)
-        state = {"chunk_cells": chunk_cells or max(1, LANES_PER_CHUNK // config.spp), "finished_chunks": [], "nonfinite": {}}
+        state = _new_state(config, chunk_cells)
     else:
         data, state = _open_folder(path, config, spec, scene, layout, chunk_cells, resumable)
     chunk = state["chunk_cells"]
@@ -362,11 +362,12 @@ def _open_folder(path, config, spec, scene, layout, chunk_cells, resumable):
         return data.reshape(cells, 3), resumable
     write_json(os.path.join(path, META_FILE), _meta(config, spec, scene, layout, status="incomplete"))
     data = np.lib.format.open_memmap(partial, mode="w+", dtype=np.float32, shape=tuple(config.shape) + (3,))
-    state = {
-        "chunk_cells": chunk_cells or max(1, LANES_PER_CHUNK // config.spp),
-        "chunk_count": -(-cells // (chunk_cells or max(1, LANES_PER_CHUNK // config.spp))),
-        "finished_chunks": [],
-        "nonfinite": {},
-    }
+    state = _new_state(config, chunk_cells)
     write_json(os.path.join(path, PROGRESS_FILE), state)
     return data.reshape(cells, 3), state
+
+
+def _new_state(config, chunk_cells):
+    """Progress of a new acquisition: the chunking and what has been done."""
+    chunk = chunk_cells or max(1, LANES_PER_CHUNK // config.spp)
+    return {"chunk_cells": chunk, "chunk_count": -(-math.prod(config.shape) // chunk), "finished_chunks": [], "nonfinite": {}}
