@@ -38,10 +38,11 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..provenance import atomic_write_bytes
 
 #: Bumped whenever a generator's output changes, so that stale cache files are
 #: not reused (the version is part of every cache key).
@@ -947,18 +948,8 @@ def write_ply(path, mesh, normals=True):
         Also write per-vertex normals.
     """
     path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    data = ply_bytes(mesh, normals)
-    descriptor, temporary = tempfile.mkstemp(prefix=".tmp-", suffix=".ply", dir=directory)
-    try:
-        with os.fdopen(descriptor, "wb") as handle:
-            handle.write(data)
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
-        raise
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    atomic_write_bytes(path, ply_bytes(mesh, normals))
 
 
 def cache_directory():

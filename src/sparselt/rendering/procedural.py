@@ -178,3 +178,175 @@ def dof_sculptures():
         camera=camera,
         default_resolution=(128, 128),
     )
+
+
+# ---------------------------------------------------------------------------
+# courtyard
+# ---------------------------------------------------------------------------
+
+#: Half width of the square courtyard (metres); arcades stand on three sides.
+COURTYARD_HALF_WIDTH = 6.0
+#: Column spacing along an arcade, column height, gallery depth behind the columns.
+ARCADE_SPACING = 2.0
+ARCADE_COLUMN_HEIGHT = 3.0
+ARCADE_GALLERY_DEPTH = 2.2
+ARCADE_ARCH_HEIGHT = 1.4
+
+
+def _arcade_sides():
+    """(rotation about y, outward direction) of the three arcades: left, back, right."""
+    return ((90.0, (-1.0, 0.0, 0.0)), (0.0, (0.0, 0.0, -1.0)), (-90.0, (1.0, 0.0, 0.0)))
+
+
+def _arcade_frames():
+    """World transforms (4x4) placing an arcade built along x at z = 0 on each side."""
+    frames = []
+    for angle, outward in _arcade_sides():
+        rotation = meshes.rotation_matrix((0.0, 1.0, 0.0), angle)
+        translation = meshes.translation_matrix(np.asarray(outward) * COURTYARD_HALF_WIDTH)
+        frames.append(translation @ rotation)
+    return frames
+
+
+def _column_positions():
+    half = COURTYARD_HALF_WIDTH
+    count = int(round(2 * half / ARCADE_SPACING)) + 1
+    return np.linspace(-half, half, count)
+
+
+def _courtyard_columns(flutes, segments):
+    column = meshes.column(height=ARCADE_COLUMN_HEIGHT, radius=0.2, flutes=flutes, segments=segments, detail=6)
+    pieces = []
+    for frame in _arcade_frames():
+        for x in _column_positions()[1:-1]:
+            pieces.append(column.translated((x, 0.0, 0.0)).transformed(frame))
+    return meshes.merge(pieces)
+
+
+def _courtyard_arches(segments):
+    half_span = 0.5 * ARCADE_SPACING
+    arch = meshes.arch(inner_radius=half_span - 0.22, outer_radius=half_span, depth=0.5, segments=segments,
+                       outer_height=ARCADE_ARCH_HEIGHT)
+    pieces = []
+    for frame in _arcade_frames():
+        for left, right in zip(_column_positions()[:-1], _column_positions()[1:]):
+            pieces.append(arch.translated((0.5 * (left + right), ARCADE_COLUMN_HEIGHT, 0.0)).transformed(frame))
+        # Roof slab of the gallery, resting on the arches and the back wall.
+        roof = meshes.box((2 * COURTYARD_HALF_WIDTH + ARCADE_GALLERY_DEPTH * 2, 0.25, ARCADE_GALLERY_DEPTH + 0.5),
+                          (0.0, ARCADE_COLUMN_HEIGHT + ARCADE_ARCH_HEIGHT + 0.125, -0.5 * ARCADE_GALLERY_DEPTH))
+        pieces.append(roof.transformed(frame))
+    return meshes.merge(pieces)
+
+
+def _courtyard_walls():
+    """Outer walls of the galleries with doors and windows (light enters through them)."""
+    height = ARCADE_COLUMN_HEIGHT + ARCADE_ARCH_HEIGHT
+    width = 2 * (COURTYARD_HALF_WIDTH + ARCADE_GALLERY_DEPTH) + 0.3
+    openings = []
+    for x in np.arange(-COURTYARD_HALF_WIDTH + 1.0, COURTYARD_HALF_WIDTH, 2.0):
+        if abs(x) < 0.5:
+            openings.append((x - 0.6, x + 0.6, 0.0, 2.6))  # door
+        else:
+            openings.append((x - 0.35, x + 0.35, 1.2, 2.6))  # window
+    wall = meshes.wall_with_openings(width, height, 0.3, openings)
+    pieces = []
+    for frame in _arcade_frames():
+        pieces.append(wall.translated((0.0, 0.0, -ARCADE_GALLERY_DEPTH)).transformed(frame))
+    return meshes.merge(pieces)
+
+
+def _courtyard_pots(segments):
+    rng = np.random.default_rng(11)
+    pot = meshes.vase(height=1.0, radius=0.4, wall=0.04, flutes=0, segments=segments, detail=12, shape=1)
+    pieces = []
+    for frame in _arcade_frames():
+        for x in _column_positions()[1:-1]:
+            for offset in (-0.45, 0.45):
+                size = rng.uniform(0.35, 0.6)
+                angle = rng.uniform(0.0, 360.0)
+                placed = pot.rotated((0.0, 1.0, 0.0), angle).scaled(size).translated((x + offset, 0.0, 0.45))
+                pieces.append(placed.transformed(frame))
+    return meshes.merge(pieces)
+
+
+def _courtyard_crates_and_benches():
+    rng = np.random.default_rng(5)
+    pieces = []
+    # Benches between the columns in each gallery.
+    seat = meshes.merge([
+        meshes.box((1.2, 0.08, 0.4), (0.0, 0.45, 0.0)),
+        meshes.box((0.08, 0.45, 0.36), (-0.5, 0.225, 0.0)),
+        meshes.box((0.08, 0.45, 0.36), (0.5, 0.225, 0.0)),
+    ])
+    for frame in _arcade_frames():
+        for x in _column_positions()[1:-1:2]:
+            pieces.append(seat.translated((x + 1.0, 0.0, -1.4)).transformed(frame))
+    # Stacks of crates scattered in the galleries' corners and in the courtyard.
+    for _ in range(36):
+        side = _arcade_frames()[int(rng.integers(0, 3))]
+        size = rng.uniform(0.25, 0.5)
+        x = rng.uniform(-COURTYARD_HALF_WIDTH + 0.6, COURTYARD_HALF_WIDTH - 0.6)
+        z = rng.uniform(-ARCADE_GALLERY_DEPTH + 0.4, -0.5)
+        crate = meshes.box((size, size, size), (0.0, 0.5 * size, 0.0)).rotated((0.0, 1.0, 0.0), rng.uniform(0, 90))
+        pieces.append(crate.translated((x, 0.0, z)).transformed(side))
+    return meshes.merge(pieces)
+
+
+def _courtyard_fountain(segments):
+    basin = meshes.vase(height=0.5, radius=1.4, wall=0.12, flutes=0, segments=segments, detail=16, shape=2)
+    pedestal = meshes.column(height=1.6, radius=0.16, flutes=12, segments=segments, detail=4)
+    bowl = meshes.vase(height=0.25, radius=0.55, wall=0.05, flutes=16, segments=segments, detail=10, shape=2)
+    return meshes.merge([basin, pedestal, bowl.translated((0.0, 1.6, 0.0))])
+
+
+@register("courtyard")
+def courtyard():
+    files = {
+        "columns": meshes.mesh_file("courtyard-columns", _courtyard_columns, flutes=20, segments=80),
+        "arches": meshes.mesh_file("courtyard-arches", _courtyard_arches, segments=48),
+        "walls": meshes.mesh_file("courtyard-walls", _courtyard_walls),
+        "pots": meshes.mesh_file("courtyard-pots", _courtyard_pots, segments=48),
+        "furniture": meshes.mesh_file("courtyard-furniture", _courtyard_crates_and_benches),
+        "fountain": meshes.mesh_file("courtyard-fountain", _courtyard_fountain, segments=96),
+    }
+    stone = _plastic((0.62, 0.55, 0.45), 0.35)
+    objects = {
+        "type": "scene",
+        "columns": _ply(files["columns"], _plastic((0.78, 0.74, 0.66), 0.25)),
+        "arches": _ply(files["arches"], stone),
+        "walls": _ply(files["walls"], _diffuse((0.70, 0.52, 0.36))),
+        "pots": _ply(files["pots"], _plastic((0.55, 0.22, 0.10), 0.3)),
+        "furniture": _ply(files["furniture"], _diffuse((0.42, 0.28, 0.16))),
+        "fountain": _ply(files["fountain"], _metal("Cu", 0.15), Transform().translate((0.0, 0.0, -1.0))),
+        "floor": {
+            "type": "rectangle",
+            "to_world": Transform().rotate((1.0, 0.0, 0.0), -90.0).scale(COURTYARD_HALF_WIDTH + ARCADE_GALLERY_DEPTH + 1.0),
+            "bsdf": {
+                "type": "roughplastic",
+                "distribution": "ggx",
+                "alpha": 0.05,
+                "diffuse_reflectance": {
+                    "type": "checkerboard",
+                    "color0": _rgb((0.55, 0.50, 0.44)),
+                    "color1": _rgb((0.30, 0.22, 0.17)),
+                    "to_uv": Transform().scale((18.0, 18.0, 1.0)),
+                },
+            },
+        },
+        "sun": {"type": "directional", "direction": [0.45, -0.55, -0.7], "irradiance": _rgb((5.0, 4.5, 3.7))},
+        "sky": {"type": "constant", "radiance": _rgb((0.30, 0.40, 0.55))},
+    }
+    camera = Camera(
+        to_world=Transform().look_at((0.0, 1.6, 9.5), (0.0, 1.8, -2.0), (0.0, 1.0, 0.0)),
+        fov=70.0,
+        fov_axis="x",
+        near_clip=0.01,
+        far_clip=200.0,
+    )
+    return SceneSpec(
+        name="courtyard",
+        description="Arcaded courtyard: columns, arches, walls with openings, pots and crates, sun and sky, glossy floor",
+        objects=objects,
+        camera=camera,
+        default_resolution=(160, 120),
+    )
