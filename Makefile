@@ -16,7 +16,7 @@ test: $(STAMP)
 # Main job: a dof signal of the depth-of-field scene, its integrated image and slices,
 # and the path-traced reference at the same resolution.
 demo: $(STAMP)
-	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,8,8 --spp 32 --seed 1 --out $(DEMO)/signal --overwrite
+	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,16,16 --spp 16 --seed 1 --out $(DEMO)/signal --overwrite
 	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures
 	$(BIN)/sparselt render --scene dof-sculptures --resolution 128,128 --spp 2048 --out $(DEMO)/reference --overwrite
 	@echo "demo: pictures in $(DEMO)/pictures, reference in $(DEMO)/reference"

@@ -79,14 +79,18 @@ def show_signal(signal, out, *, grid=4):
     for pair_start in range(0, len(extra) - 1, 2):
         a, b = extra[pair_start], extra[pair_start + 1]
         others = tuple(axis - 2 for axis in extra if axis not in (a, b))
+        planes = {}
+        for y in pixels_y:
+            for x in pixels_x:
+                cube = np.asarray(signal.data[x, y], dtype=np.float64)  # shape = non-image axes + (3,)
+                planes[x, y] = (cube.mean(axis=others) if others else cube).mean(axis=-1)
+        # One colour scale for every panel, so that flat and dark pixels look flat and dark.
+        top = float(np.percentile(np.concatenate([plane.ravel() for plane in planes.values()]), 99.5)) or 1.0
         figure, panels = pyplot.subplots(len(pixels_y), len(pixels_x), figsize=(2.2 * len(pixels_x), 2.2 * len(pixels_y)), squeeze=False)
         for row, y in enumerate(pixels_y):
             for column, x in enumerate(pixels_x):
-                cube = np.asarray(signal.data[x, y], dtype=np.float64)  # shape = non-image axes + (3,)
-                plane = cube.mean(axis=others) if others else cube
-                luminance = plane.mean(axis=-1)
                 panel = panels[row][column]
-                panel.imshow(luminance.T, origin="lower", cmap="inferno", interpolation="nearest")
+                shown = panel.imshow(planes[x, y].T, origin="lower", cmap="inferno", interpolation="nearest", vmin=0.0, vmax=top)
                 panel.set_title(f"pixel ({x}, {y})", fontsize=8)
                 panel.set_xticks([])
                 panel.set_yticks([])
@@ -94,6 +98,7 @@ def show_signal(signal, out, *, grid=4):
                     panel.set_xlabel(axes[a], fontsize=8)
                 if column == 0:
                     panel.set_ylabel(axes[b], fontsize=8)
+        figure.colorbar(shown, ax=panels, shrink=0.6, label="luminance")
         figure.suptitle(f"{signal.kind}: luminance over ({axes[a]}, {axes[b]}) per pixel", fontsize=10)
         path = os.path.join(out, f"slices_{axes[a]}_{axes[b]}.png")
         save_figure(figure, path, dpi=100, bbox_inches="tight")
