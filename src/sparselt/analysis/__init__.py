@@ -1,0 +1,1 @@
+"""Sparsity analysis and image metrics (thesis ch. 5 and 7)."""

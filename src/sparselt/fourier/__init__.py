@@ -1,0 +1,1 @@
+"""Fourier representations: the FFT backend, sparse Fourier signals, integration (thesis ch. 4)."""

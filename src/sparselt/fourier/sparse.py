@@ -1,0 +1,217 @@
+"""Sparse Fourier representations: the common output of every recovery algorithm.
+
+A :class:`SparseFourier` holds ``K`` coefficients of an n-D discrete Fourier
+transform in the ``numpy.fft.fftn`` convention (unnormalised forward DFT),
+addressed by flat C-order indices into the spectrum of shape ``shape``:
+
+.. math:: f(n) = \\frac{1}{N} \\sum_{j=0}^{K-1} c_j \\, e^{2 \\pi i \\langle k_j, n / s \\rangle}
+
+so that :meth:`SparseFourier.to_signal` equals ``numpy.fft.ifftn`` of the
+scattered coefficients (thesis eq. 4.2). Values may carry trailing channel
+axes (``(K, 3)`` for RGB sharing one support).
+
+Real signals have Hermitian spectra, ``c(-k) = conj(c(k))``. A representation
+built with ``real=True`` must be closed under that symmetry (every index has
+its partner with the conjugate value), :meth:`SparseFourier.largest` keeps
+partners together, and :meth:`SparseFourier.to_signal` returns a real array.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import fft
+
+
+def _as_shape(shape):
+    try:
+        shape = tuple(int(size) for size in shape)
+    except TypeError:
+        raise ValueError(f"shape must be a sequence of positive integers, got {shape!r}") from None
+    if not shape or any(size <= 0 for size in shape):
+        raise ValueError(f"shape must be a non-empty sequence of positive integers, got {shape!r}")
+    return shape
+
+
+def partner_indices(shape, indices):
+    """Flat index of ``-k mod shape`` for each flat index ``k`` (the Hermitian partner)."""
+    shape = _as_shape(shape)
+    coordinates = np.unravel_index(np.asarray(indices, dtype=np.int64), shape)
+    negated = tuple((-coordinate) % size for coordinate, size in zip(coordinates, shape))
+    return np.ravel_multi_index(negated, shape).astype(np.int64)
+
+
+class SparseFourier:
+    """``K`` Fourier coefficients of a signal of shape ``shape``.
+
+    Parameters
+    ----------
+    shape : sequence of int
+        Shape of the signal (and of its full spectrum).
+    indices : array_like of int, shape (K,)
+        Distinct flat C-order indices into the spectrum. Stored sorted.
+    values : array_like, shape (K,) or (K, channels...)
+        Complex coefficients, ``numpy.fft.fftn`` convention.
+    real : bool, optional
+        The represented signal is real: the support must be closed under
+        ``k -> -k`` with conjugate values (checked to a relative tolerance).
+
+    Raises
+    ------
+    ValueError
+        Indices out of range or repeated, values of the wrong length, or a
+        ``real`` representation that is not Hermitian.
+    """
+
+    def __init__(self, shape, indices, values, *, real=False, tolerance=1e-4):
+        self.shape = _as_shape(shape)
+        self.size = int(np.prod(self.shape, dtype=np.int64))
+        indices = np.asarray(indices)
+        if indices.ndim != 1 or (indices.size and not np.issubdtype(indices.dtype, np.integer)):
+            raise ValueError(f"indices must be a 1-D array of integers, got dtype {indices.dtype} and shape {indices.shape}")
+        indices = indices.astype(np.int64)
+        values = np.asarray(values)
+        if values.ndim == 0 or values.shape[0] != indices.size:
+            raise ValueError(f"values must have one row per index: {indices.size} indices, values of shape {values.shape}")
+        if indices.size and (indices.min() < 0 or indices.max() >= self.size):
+            bad = indices[(indices < 0) | (indices >= self.size)][0]
+            raise ValueError(f"index {bad} is out of range for shape {self.shape} (0 <= index < {self.size})")
+        order = np.argsort(indices, kind="stable")
+        indices = indices[order]
+        if indices.size > 1 and np.any(indices[1:] == indices[:-1]):
+            raise ValueError(f"indices must be distinct; {indices[1:][indices[1:] == indices[:-1]][0]} is repeated")
+        if not np.iscomplexobj(values):
+            values = values.astype(np.complex128 if values.dtype != np.float32 else np.complex64)
+        self.indices = indices
+        self.values = values[order]
+        self.real = bool(real)
+        if self.real:
+            self._check_hermitian(tolerance)
+
+    # -- construction ------------------------------------------------------
+
+    @classmethod
+    def from_spectrum(cls, spectrum, indices=None, *, real=False, channel_axes=0):
+        """Take coefficients of a dense spectrum (all of them, or those at ``indices``).
+
+        ``channel_axes`` trailing axes of ``spectrum`` are channels.
+        """
+        spectrum = np.asarray(spectrum)
+        shape = spectrum.shape[:spectrum.ndim - channel_axes] if channel_axes else spectrum.shape
+        flat = spectrum.reshape((-1,) + spectrum.shape[len(shape):])
+        if indices is None:
+            indices = np.arange(flat.shape[0], dtype=np.int64)
+        indices = np.asarray(indices, dtype=np.int64)
+        return cls(shape, indices, flat[indices], real=real)
+
+    @classmethod
+    def from_signal(cls, signal, *, channel_axes=0):
+        """The full (dense) representation of a signal: its FFT."""
+        signal = np.asarray(signal)
+        axes = tuple(range(signal.ndim - channel_axes))
+        return cls.from_spectrum(fft.fftn(signal, axes=axes), real=not np.iscomplexobj(signal), channel_axes=channel_axes)
+
+    # -- properties ----------------------------------------------------------
+
+    @property
+    def sparsity(self):
+        """Number of coefficients ``K``."""
+        return int(self.indices.size)
+
+    @property
+    def channel_shape(self):
+        return tuple(self.values.shape[1:])
+
+    def coordinates(self):
+        """Frequency coordinates of each coefficient, shape (K, D), in ``[0, shape)``."""
+        return np.stack(np.unravel_index(self.indices, self.shape), axis=1)
+
+    def partners(self):
+        """Flat indices of the Hermitian partners of the coefficients."""
+        return partner_indices(self.shape, self.indices)
+
+    def _check_hermitian(self, tolerance):
+        partners = self.partners()
+        position = np.searchsorted(self.indices, partners)
+        position = np.minimum(position, max(self.sparsity - 1, 0))
+        present = self.indices[position] == partners if self.sparsity else np.zeros(0, bool)
+        if not np.all(present):
+            missing = self.indices[~present][0]
+            raise ValueError(
+                f"a real representation needs the Hermitian partner of every coefficient; index {missing} has "
+                f"none (partner {partners[~present][0]}); use .hermitian_closure() or real=False"
+            )
+        scale = max(float(np.abs(self.values).max(initial=0.0)), 1e-30)
+        mismatch = np.abs(self.values - np.conj(self.values[position])).max(initial=0.0)
+        if mismatch > tolerance * scale:
+            raise ValueError(f"coefficients are not conjugate-symmetric (largest mismatch {mismatch:.3g}); not a real signal")
+
+    def hermitian_closure(self):
+        """Add each missing partner ``-k`` with value ``conj(c(k))``; return a ``real`` representation.
+
+        Where both partners are present their values are replaced by the
+        Hermitian part, ``(c(k) + conj(c(-k))) / 2``, so the closure of any
+        representation is the projection of its signal onto real signals.
+        """
+        partners = self.partners()
+        union = np.union1d(self.indices, partners)
+        values = np.zeros((union.size,) + self.channel_shape, dtype=self.values.dtype)
+        counts = np.zeros(union.size)
+        own = np.searchsorted(union, self.indices)
+        mirrored = np.searchsorted(union, partners)
+        values[own] += self.values
+        counts[own] += 1
+        np.add.at(values, mirrored, np.conj(self.values))
+        np.add.at(counts, mirrored, 1)
+        values /= counts.reshape((-1,) + (1,) * len(self.channel_shape))
+        return SparseFourier(self.shape, union, values, real=True)
+
+    # -- operations ----------------------------------------------------------
+
+    def to_spectrum(self, dtype=None):
+        """The full dense spectrum (zeros off the support), shape ``shape + channels``."""
+        dtype = dtype or self.values.dtype
+        dense = np.zeros((self.size,) + self.channel_shape, dtype=dtype)
+        dense[self.indices] = self.values
+        return dense.reshape(self.shape + self.channel_shape)
+
+    def to_signal(self):
+        """The signal: ``numpy.fft.ifftn`` of the spectrum over the signal axes (real part if ``real``)."""
+        signal = fft.ifftn(self.to_spectrum(), axes=tuple(range(len(self.shape))))
+        return np.ascontiguousarray(signal.real) if self.real else signal
+
+    def energy(self):
+        """Energy of each coefficient, summed over channels: ``|c|^2``."""
+        energy = np.abs(self.values) ** 2
+        return energy.reshape(self.sparsity, -1).sum(axis=1)
+
+    def largest(self, count):
+        """The ``count`` coefficients of largest energy (ties broken by index).
+
+        For a ``real`` representation partners are kept together: pairs are
+        ranked by their common energy and the result has ``count`` or
+        ``count - 1`` coefficients (a pair is never split).
+        """
+        count = int(count)
+        if count < 0:
+            raise ValueError(f"count must be non-negative, got {count}")
+        if count >= self.sparsity:
+            return self
+        energy = self.energy()
+        if not self.real:
+            keep = np.sort(np.argsort(-energy, kind="stable")[:count])
+            return SparseFourier(self.shape, self.indices[keep], self.values[keep])
+        partners = self.partners()
+        group = np.minimum(self.indices, partners)  # one key per Hermitian pair
+        order = np.lexsort((group, -energy))
+        ranked_groups = group[order]
+        _, first = np.unique(ranked_groups, return_index=True)
+        group_order = ranked_groups[np.sort(first)]
+        sizes = np.where(group_order == partner_indices(self.shape, group_order), 1, 2)
+        kept_groups = group_order[np.cumsum(sizes) <= count]
+        keep = np.isin(group, kept_groups)
+        return SparseFourier(self.shape, self.indices[keep], self.values[keep], real=True)
+
+    def __repr__(self):
+        return (f"SparseFourier(shape={self.shape}, K={self.sparsity}, channels={self.channel_shape}, "
+                f"real={self.real})")
