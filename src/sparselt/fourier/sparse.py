@@ -147,23 +147,18 @@ class SparseFourier:
             raise ValueError(f"coefficients are not conjugate-symmetric (largest mismatch {mismatch:.3g}); not a real signal")
 
     def hermitian_closure(self):
-        """Add each missing partner ``-k`` with value ``conj(c(k))``; return a ``real`` representation.
+        """The representation of the real part of the signal, closed under ``k -> -k``.
 
-        Where both partners are present their values are replaced by the
-        Hermitian part, ``(c(k) + conj(c(-k))) / 2``, so the closure of any
-        representation is the projection of its signal onto real signals.
+        Every coefficient becomes the Hermitian part ``(c(k) + conj(c(-k))) / 2``
+        (a missing coefficient counts as zero), so the closure's signal is the
+        real part of the original signal.
         """
         partners = self.partners()
         union = np.union1d(self.indices, partners)
         values = np.zeros((union.size,) + self.channel_shape, dtype=self.values.dtype)
-        counts = np.zeros(union.size)
-        own = np.searchsorted(union, self.indices)
-        mirrored = np.searchsorted(union, partners)
-        values[own] += self.values
-        counts[own] += 1
-        np.add.at(values, mirrored, np.conj(self.values))
-        np.add.at(counts, mirrored, 1)
-        values /= counts.reshape((-1,) + (1,) * len(self.channel_shape))
+        values[np.searchsorted(union, self.indices)] += self.values
+        values[np.searchsorted(union, partners)] += np.conj(self.values)
+        values /= 2
         return SparseFourier(self.shape, union, values, real=True)
 
     # -- operations ----------------------------------------------------------
