@@ -88,3 +88,15 @@ def test_show_of_an_incomplete_signal_says_how_to_resume(tmp_path):
     (tmp_path / "meta.json").write_text(json.dumps({"status": "incomplete"}))
     result = run("show", str(tmp_path), "--out", str(tmp_path / "pictures"))
     assert result.returncode != 0 and "resume" in result.stderr
+
+
+def test_analyze_a_sampled_signal(tmp_path):
+    signal = tmp_path / "signal"
+    assert run("sample", "--scene", "cornell-box", "--kind", "indirect", "--shape", "16,16,4,4", "--spp", "4",
+               "--out", str(signal), "--no-progress").returncode == 0
+    result = run("analyze", str(signal), "--gamma", "1,0.5", "--fractions", "0.01,1", "--out", str(tmp_path / "analysis"))
+    assert result.returncode == 0, result.stderr
+    assert "| gamma | Time | Time Energy | Frequency | Frequency Energy |" in result.stdout
+    assert (tmp_path / "analysis" / "ssim_vs_fraction.png").exists()
+    bad = run("analyze", str(signal), "--gamma", "0", "--out", str(tmp_path / "bad"))
+    assert bad.returncode != 0 and "gamma" in bad.stderr and "Traceback" not in bad.stderr

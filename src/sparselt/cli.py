@@ -17,6 +17,16 @@ def _shape(text):
     return values
 
 
+def _numbers(text):
+    try:
+        values = tuple(float(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers such as 1,0.5,0.25, got {text!r}") from None
+    if not values:
+        raise argparse.ArgumentTypeError("expected at least one number")
+    return values
+
+
 def _add_camera_options(parser):
     parser.add_argument("--aperture", type=float, default=None, help="switch the camera to a thin lens of this radius")
     parser.add_argument("--focus-distance", type=float, default=None, help="focus distance of the thin lens")
@@ -67,6 +77,31 @@ def build_parser():
     render.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
     _add_camera_options(render)
     render.set_defaults(handler=_render)
+
+    analyze = commands.add_parser(
+        "analyze",
+        help="sparsity analysis: Gini tables and hard-thresholded SSIM",
+        description="Gini index in both domains per gamma (Tables 5.1, 5.2, 7.1-7.3) and SSIM of hard-thresholded "
+        "Fourier reconstructions against the signal's image (Figures 5.2-5.4, 7.1-7.6).",
+    )
+    analyze.add_argument("signal", help="signal folder")
+    analyze.add_argument("--gamma", type=_numbers, default=(1.0, 0.5, 0.25, 0.1, 0.05),
+                         help="gamma mappings, comma separated (default: 1,0.5,0.25,0.1,0.05)")
+    analyze.add_argument("--fractions", type=_numbers, default=None,
+                         help="fractions of Fourier coefficients kept, comma separated (default: 1e-5 .. 0.1)")
+    analyze.add_argument("--out", required=True, help="output folder")
+    analyze.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
+    analyze.set_defaults(handler=_analyze)
+
+    bench = commands.add_parser("bench", help="benchmarks that write figures", description="Benchmarks.")
+    benches = bench.add_subparsers(dest="benchmark", required=True, metavar="BENCHMARK")
+    bench_integrate = benches.add_parser(
+        "integrate", help="integration methods (Figures 4.1, 4.2, Table 4.1)",
+        description="Time and peak memory of the four Fourier integration methods on random sparse 4-D signals (thesis 4.3).")
+    bench_integrate.add_argument("--sizes", type=_shape, default=(32, 48, 64, 96, 128), help="s values, N = s^4 (default: 32,48,64,96,128)")
+    bench_integrate.add_argument("--out", required=True, help="output folder")
+    bench_integrate.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
+    bench_integrate.set_defaults(handler=_bench_integrate)
 
     show = commands.add_parser("show", help="pictures of a signal", description="Write the integrated image and 2-D slices of a signal as PNGs.")
     show.add_argument("signal", help="signal folder")
@@ -121,6 +156,28 @@ def _render(arguments):
                                  focus_distance=arguments.focus_distance, variant=arguments.variant)
     print(f"wrote {arguments.out}: {record['resolution'][0]}x{record['resolution'][1]} at {record['spp']} spp "
           f"in {record['seconds']:.2f} s ({record['samples_per_second'] / 1e6:.2f} M samples/s)")
+    return 0
+
+
+def _analyze(arguments):
+    from .experiments.sparsity_analysis import DEFAULT_FRACTIONS, analyze_signal
+    from .provenance import check_output_folder
+    from .signal import load_signal
+
+    signal = load_signal(arguments.signal)
+    check_output_folder(arguments.out, overwrite=arguments.overwrite)
+    result = analyze_signal(signal, arguments.out, gammas=arguments.gamma, fractions=arguments.fractions or DEFAULT_FRACTIONS)
+    print(result["gamma_table"])
+    print(f"wrote {arguments.out}")
+    return 0
+
+
+def _bench_integrate(arguments):
+    from .experiments.integration_benchmark import run_integration_benchmark
+    from .provenance import check_output_folder
+
+    check_output_folder(arguments.out, overwrite=arguments.overwrite)
+    run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes))
     return 0
 
 

@@ -6,14 +6,8 @@ import os
 
 import numpy as np
 
+from .analysis.metrics import reference_exposure
 from .images import save_figure, srgb_tonemap, write_png
-
-
-def _exposure(image):
-    """Exposure that maps the 99th percentile of luminance to 0.9."""
-    luminance = np.asarray(image, dtype=np.float64).mean(axis=-1)
-    level = np.percentile(luminance, 99) if luminance.size else 0.0
-    return 0.9 / level if level > 0 else 1.0
 
 
 def show_signal(signal, out, *, grid=4):
@@ -46,7 +40,7 @@ def show_signal(signal, out, *, grid=4):
     os.makedirs(out, exist_ok=True)
     written = []
     image = signal.image()
-    exposure = _exposure(image)
+    exposure = reference_exposure(image)
     write_png(os.path.join(out, "image.png"), image, exposure=exposure)
     written.append(os.path.join(out, "image.png"))
 

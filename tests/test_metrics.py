@@ -1,0 +1,370 @@
+"""Image metrics (thesis 5.2): SSIM, PSNR, RMSE, relMSE and the HDR SSIM convention.
+
+Golden values come from scikit-image, an independent implementation; the
+pinned numbers were produced with scikit-image 0.26.0 by
+``structural_similarity(a, b, data_range=1.0, gaussian_weights=True,
+sigma=1.5, use_sample_covariance=False[, channel_axis=-1])`` on the arrays
+built in ``test_ssim_pinned_golden_values``.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from sparselt.analysis.metrics import (
+    display_image,
+    image_ssim,
+    peak_signal_to_noise_ratio,
+    reference_exposure,
+    relative_mean_squared_error,
+    root_mean_squared_error,
+    structural_similarity,
+)
+
+
+def scikit_image_ssim(image, reference, data_range, channel_axis=None, full=False):
+    metrics = pytest.importorskip("skimage.metrics")
+    return metrics.structural_similarity(
+        image, reference, data_range=data_range, gaussian_weights=True, sigma=1.5,
+        use_sample_covariance=False, channel_axis=channel_axis, full=full,
+    )
+
+
+def hdr_image(seed, shape=(32, 40, 3)):
+    """A smooth linear HDR RGB image with a few bright highlights."""
+    rng = np.random.default_rng(seed)
+    rows, columns = np.meshgrid(np.linspace(0, 1, shape[0]), np.linspace(0, 1, shape[1]), indexing="ij")
+    base = 0.2 + 0.5 * np.sin(3 * rows) * np.cos(2 * columns) ** 2
+    image = np.stack([base, 0.8 * base + 0.1 * rows, 0.6 * base + 0.2 * columns], axis=-1)
+    image = image * np.exp(0.3 * rng.standard_normal(shape))
+    image[rng.integers(0, shape[0], 5), rng.integers(0, shape[1], 5)] = 20.0
+    return image
+
+
+# --------------------------------------------------------------------------- SSIM
+
+
+@pytest.mark.parametrize(
+    "shape, channel_axis, data_range, seed",
+    [
+        ((11, 11), None, 1.0, 0),
+        ((24, 31), None, 1.0, 1),
+        ((40, 17), None, 255.0, 2),
+        ((20, 20, 3), -1, 1.0, 3),
+        ((18, 25, 3), 2, 4.0, 4),
+        ((3, 16, 21), 0, 2.0, 5),
+    ],
+)
+def test_ssim_equals_scikit_image(shape, channel_axis, data_range, seed):
+    rng = np.random.default_rng(seed)
+    reference = data_range * rng.random(shape)
+    image = reference + 0.1 * data_range * rng.standard_normal(shape)
+    ours, our_map = structural_similarity(image, reference, data_range=data_range, channel_axis=channel_axis, full=True)
+    theirs, their_map = scikit_image_ssim(image, reference, data_range, channel_axis, full=True)
+    assert abs(ours - theirs) <= 1e-10
+    assert our_map.shape == shape
+    np.testing.assert_allclose(our_map, their_map, rtol=0, atol=1e-10)
+    assert structural_similarity(image, reference, data_range=data_range, channel_axis=channel_axis) == ours
+
+
+def test_ssim_pinned_golden_values():
+    rng = np.random.default_rng(2024)
+    gray = rng.random((24, 20))
+    noisy_gray = gray + 0.1 * rng.standard_normal((24, 20))
+    assert structural_similarity(noisy_gray, gray, data_range=1.0) == pytest.approx(0.9351664264222806, abs=1e-10)
+    colour = rng.random((16, 18, 3))
+    noisy_colour = np.clip(colour + 0.2 * rng.standard_normal(colour.shape), 0, 1)
+    assert structural_similarity(noisy_colour, colour, data_range=1.0, channel_axis=-1) == pytest.approx(
+        0.8017009255349618, abs=1e-10
+    )
+
+
+def test_ssim_accepts_integer_and_float32_input_as_float64():
+    rng = np.random.default_rng(6)
+    reference = rng.integers(0, 256, (16, 16)).astype(np.uint8)
+    image = rng.integers(0, 256, (16, 16)).astype(np.uint8)
+    expected = structural_similarity(image.astype(np.float64), reference.astype(np.float64), data_range=255)
+    assert structural_similarity(image, reference, data_range=255) == expected
+    assert structural_similarity(image.astype(np.float32), reference.astype(np.float32), data_range=255) == expected
+
+
+@pytest.mark.parametrize("shape, channel_axis", [((15, 19), None), ((13, 12, 3), -1)])
+def test_ssim_of_identical_images_is_one(shape, channel_axis):
+    image = 7.0 * np.random.default_rng(7).random(shape)
+    value, ssim_map = structural_similarity(image, image.copy(), data_range=7.0, channel_axis=channel_axis, full=True)
+    assert abs(value - 1.0) <= 1e-12
+    np.testing.assert_allclose(ssim_map, 1.0, rtol=0, atol=1e-12)
+
+
+def test_ssim_decreases_as_noise_grows():
+    rng = np.random.default_rng(8)
+    reference = rng.random((32, 32))
+    noise = rng.standard_normal((32, 32))
+    values = [structural_similarity(reference + level * noise, reference, data_range=1.0)
+              for level in (0.0, 0.01, 0.05, 0.1, 0.3, 1.0)]
+    assert values[0] == pytest.approx(1.0, abs=1e-12)
+    assert all(later < earlier for earlier, later in zip(values, values[1:])), values
+
+
+# --------------------------------------------------------------------------- PSNR, RMSE, relMSE
+
+
+@pytest.mark.parametrize("shape, data_range, seed", [((10,), 1.0, 0), ((16, 16), 1.0, 1), ((8, 9, 3), 255.0, 2)])
+def test_psnr_and_rmse_equal_scikit_image(shape, data_range, seed):
+    metrics = pytest.importorskip("skimage.metrics")
+    rng = np.random.default_rng(seed)
+    reference = data_range * rng.random(shape)
+    image = reference + 0.05 * data_range * rng.standard_normal(shape)
+    assert peak_signal_to_noise_ratio(image, reference, data_range=data_range) == pytest.approx(
+        metrics.peak_signal_noise_ratio(reference, image, data_range=data_range), rel=0, abs=1e-10
+    )
+    assert root_mean_squared_error(image, reference) == pytest.approx(
+        math.sqrt(metrics.mean_squared_error(reference, image)), rel=1e-12
+    )
+
+
+def test_psnr_and_rmse_hand_computed():
+    image = np.array([0.0, 0.5, 1.0, 1.0])
+    reference = np.array([0.0, 0.5, 0.5, 1.0])  # squared errors 0, 0, 0.25, 0 -> MSE 1/16
+    assert root_mean_squared_error(image, reference) == pytest.approx(0.25, rel=1e-15)
+    assert peak_signal_to_noise_ratio(image, reference, data_range=1.0) == pytest.approx(10 * math.log10(16), rel=1e-15)
+    assert peak_signal_to_noise_ratio(reference, reference, data_range=1.0) == math.inf
+    assert root_mean_squared_error(reference, reference) == 0.0
+
+
+def test_relative_mse_hand_computed_grayscale():
+    image = np.array([[1.0, 2.0], [0.5, 0.0]])
+    reference = np.array([[1.0, 1.0], [0.0, 1.0]])
+    # (0/(1+e) + 1/(1+e) + 0.25/(0+e) + 1/(1+e)) / 4 with e = 0.01
+    expected = (0.0 + 1 / 1.01 + 0.25 / 0.01 + 1 / 1.01) / 4
+    assert relative_mean_squared_error(image, reference) == pytest.approx(expected, rel=1e-14)
+    assert relative_mean_squared_error(image, reference, epsilon=1.0) == pytest.approx((0 + 0.5 + 0.25 + 0.5) / 4, rel=1e-14)
+
+
+def test_relative_mse_rgb_shares_the_mean_channel_denominator():
+    reference = np.array([[[1.0, 2.0, 2.0]]])  # mean of squares = (1 + 4 + 4) / 3 = 3
+    image = np.array([[[2.0, 2.0, 0.0]]])  # squared errors 1, 0, 4
+    expected = (1 / 3.01 + 0 + 4 / 3.01) / 3
+    assert relative_mean_squared_error(image, reference) == pytest.approx(expected, rel=1e-14)
+
+
+# --------------------------------------------------------------------------- validation: one raise per branch
+
+
+GOOD = np.random.default_rng(9).random((16, 16))
+
+
+def test_ssim_requires_data_range():
+    with pytest.raises(ValueError, match="data_range is required"):
+        structural_similarity(GOOD, GOOD)
+
+
+def test_ssim_rejects_none_data_range():
+    with pytest.raises(ValueError, match="data_range is required"):
+        structural_similarity(GOOD, GOOD, data_range=None)
+
+
+def test_data_range_is_keyword_only():
+    with pytest.raises(TypeError):
+        structural_similarity(GOOD, GOOD, 1.0)
+
+
+@pytest.mark.parametrize("data_range", [0.0, -1.0])
+def test_ssim_rejects_non_positive_data_range(data_range):
+    with pytest.raises(ValueError, match="greater than 0"):
+        structural_similarity(GOOD, GOOD, data_range=data_range)
+
+
+@pytest.mark.parametrize("data_range", [math.inf, math.nan])
+def test_ssim_rejects_non_finite_data_range(data_range):
+    with pytest.raises(ValueError, match="finite"):
+        structural_similarity(GOOD, GOOD, data_range=data_range)
+
+
+def test_ssim_rejects_non_numeric_data_range():
+    with pytest.raises(TypeError, match="data_range"):
+        structural_similarity(GOOD, GOOD, data_range="1.0")
+
+
+def test_ssim_rejects_mismatched_shapes():
+    with pytest.raises(ValueError, match="same shape"):
+        structural_similarity(GOOD, GOOD[:, :15], data_range=1.0)
+
+
+@pytest.mark.parametrize("shape", [(6, 6), (10, 30), (30, 10)])
+def test_ssim_rejects_images_smaller_than_the_window(shape):
+    image = np.zeros(shape)
+    with pytest.raises(ValueError, match="at least 11x11"):
+        structural_similarity(image, image, data_range=1.0)
+
+
+def test_ssim_rejects_small_colour_images():
+    image = np.zeros((10, 16, 3))
+    with pytest.raises(ValueError, match="at least 11x11"):
+        structural_similarity(image, image, data_range=1.0, channel_axis=-1)
+
+
+def test_ssim_rejects_empty_images():
+    with pytest.raises(ValueError, match="empty"):
+        structural_similarity(np.zeros((0, 16)), np.zeros((0, 16)), data_range=1.0)
+
+
+def test_ssim_rejects_nan():
+    image = GOOD.copy()
+    image[3, 4] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        structural_similarity(image, GOOD, data_range=1.0)
+
+
+def test_ssim_rejects_infinity_in_reference():
+    reference = GOOD.copy()
+    reference[0, 0] = np.inf
+    with pytest.raises(ValueError, match="reference contains 1 NaN or infinite"):
+        structural_similarity(GOOD, reference, data_range=1.0)
+
+
+def test_ssim_rejects_complex_input():
+    with pytest.raises(ValueError, match="real-valued"):
+        structural_similarity(GOOD + 0j, GOOD, data_range=1.0)
+
+
+def test_ssim_rejects_non_numeric_input():
+    with pytest.raises(TypeError, match="numeric"):
+        structural_similarity(np.full((16, 16), "a"), GOOD, data_range=1.0)
+
+
+def test_ssim_rejects_colour_image_without_channel_axis():
+    image = np.zeros((16, 16, 3))
+    with pytest.raises(ValueError, match="pass channel_axis"):
+        structural_similarity(image, image, data_range=1.0)
+
+
+def test_ssim_rejects_channel_axis_on_grayscale():
+    with pytest.raises(ValueError, match="must be 3-D"):
+        structural_similarity(GOOD, GOOD, data_range=1.0, channel_axis=-1)
+
+
+def test_ssim_rejects_out_of_range_channel_axis():
+    image = np.zeros((16, 16, 3))
+    with pytest.raises(ValueError, match=r"channel_axis must be None or in \[-3, 2\]"):
+        structural_similarity(image, image, data_range=1.0, channel_axis=3)
+
+
+def test_ssim_rejects_non_integer_channel_axis():
+    image = np.zeros((16, 16, 3))
+    with pytest.raises(TypeError, match="channel_axis"):
+        structural_similarity(image, image, data_range=1.0, channel_axis=1.5)
+
+
+def test_ssim_rejects_non_boolean_full():
+    with pytest.raises(TypeError, match="full"):
+        structural_similarity(GOOD, GOOD, data_range=1.0, full="yes")
+
+
+def test_psnr_requires_data_range():
+    with pytest.raises(ValueError, match="data_range is required"):
+        peak_signal_to_noise_ratio(GOOD, GOOD)
+
+
+def test_psnr_rejects_non_positive_data_range():
+    with pytest.raises(ValueError, match="greater than 0"):
+        peak_signal_to_noise_ratio(GOOD, GOOD, data_range=-2.0)
+
+
+def test_psnr_rejects_mismatched_shapes():
+    with pytest.raises(ValueError, match="same shape"):
+        peak_signal_to_noise_ratio(GOOD, GOOD.T[:3], data_range=1.0)
+
+
+def test_rmse_rejects_nan():
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        root_mean_squared_error(np.array([1.0, np.nan]), np.array([1.0, 2.0]))
+
+
+def test_rmse_rejects_mismatched_shapes():
+    with pytest.raises(ValueError, match="same shape"):
+        root_mean_squared_error(np.zeros(3), np.zeros(4))
+
+
+@pytest.mark.parametrize("epsilon", [0.0, -1e-2, math.inf])
+def test_relative_mse_rejects_bad_epsilon(epsilon):
+    with pytest.raises(ValueError, match="epsilon"):
+        relative_mean_squared_error(GOOD, GOOD, epsilon=epsilon)
+
+
+def test_relative_mse_rejects_wrong_dimensions():
+    with pytest.raises(ValueError, match=r"\(height, width\) or \(height, width, channels\)"):
+        relative_mean_squared_error(np.zeros(4), np.zeros(4))
+
+
+def test_display_image_rejects_non_rgb():
+    with pytest.raises(ValueError, match=r"\(height, width, 3\)"):
+        display_image(GOOD, GOOD)
+
+
+def test_image_ssim_rejects_nan():
+    reference = hdr_image(10)
+    image = reference.copy()
+    image[1, 1, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        image_ssim(image, reference)
+
+
+# --------------------------------------------------------------------------- HDR convention
+
+
+def test_reference_exposure_maps_99th_percentile_of_luminance_to_point_nine():
+    reference = hdr_image(11)
+    luminance = reference.mean(axis=-1)
+    assert np.percentile(luminance * reference_exposure(reference), 99) == pytest.approx(0.9, rel=1e-12)
+    assert reference_exposure(np.zeros((4, 4, 3))) == 1.0
+    assert reference_exposure(np.zeros((0, 3))) == 1.0
+
+
+def test_visualize_uses_the_shared_exposure():
+    from sparselt import visualize
+
+    assert visualize.reference_exposure is reference_exposure
+    assert not hasattr(visualize, "_exposure")
+
+
+def test_display_image_is_the_srgb_curve_at_reference_exposure():
+    reference = hdr_image(12)
+    shown = display_image(reference, reference)
+    assert shown.min() >= 0.0 and shown.max() <= 1.0
+    linear = np.clip(reference * reference_exposure(reference), 0, 1)
+    expected = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
+    np.testing.assert_allclose(shown, expected, rtol=0, atol=1e-15)
+
+
+def test_image_ssim_of_identical_hdr_images_is_one():
+    reference = hdr_image(13)
+    assert abs(image_ssim(reference.copy(), reference) - 1.0) <= 1e-12
+
+
+@pytest.mark.parametrize("scale", [1e-3, 0.37, 250.0])
+def test_image_ssim_is_invariant_to_a_common_scale(scale):
+    reference = hdr_image(14)
+    image = reference * np.exp(0.2 * np.random.default_rng(15).standard_normal(reference.shape))
+    unscaled = image_ssim(image, reference)
+    assert unscaled < 0.99
+    assert image_ssim(scale * image, scale * reference) == pytest.approx(unscaled, abs=1e-12)
+
+
+def test_image_ssim_equals_ssim_of_display_images():
+    reference = hdr_image(16)
+    image = 1.3 * reference
+    expected = structural_similarity(display_image(image, reference), display_image(reference, reference),
+                                     data_range=1.0, channel_axis=-1)
+    assert image_ssim(image, reference) == expected
+    # Exposure comes from the reference only: a uniformly brighter image is penalised.
+    assert expected < 0.999
+
+
+def test_image_ssim_is_lower_for_a_noisier_image():
+    reference = hdr_image(17)
+    noise = np.random.default_rng(18).standard_normal(reference.shape)
+    values = [image_ssim(np.abs(reference * (1 + level * noise)), reference) for level in (0.05, 0.2, 0.5)]
+    assert values[0] < 1.0
+    assert values[0] > values[1] > values[2], values
