@@ -18,11 +18,14 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,16,16 --spp 16 --seed 1 --out $(DEMO)/signal --overwrite
 	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures
+	$(BIN)/sparselt analyze $(DEMO)/signal --out $(DEMO)/analysis --overwrite
 	$(BIN)/sparselt render --scene dof-sculptures --resolution 128,128 --spp 2048 --out $(DEMO)/reference --overwrite
-	@echo "demo: pictures in $(DEMO)/pictures, reference in $(DEMO)/reference"
+	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, reference in $(DEMO)/reference"
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/sampling_throughput.py
+	$(BIN)/python benchmarks/fft_backends.py
+	$(BIN)/sparselt bench integrate --out out/bench-integrate --overwrite
 
 clean:
 	rm -rf $(VENV) out
