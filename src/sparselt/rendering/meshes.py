@@ -860,15 +860,17 @@ def wall_with_openings(width, height, thickness, openings=()):
     """A wall with rectangular openings (doors, windows), built from boxes.
 
     The wall spans ``|x| <= width / 2``, ``0 <= y <= height``,
-    ``|z| <= thickness / 2``.
+    ``|z| <= thickness / 2``. The solid part is cut into vertical strips at
+    the openings' x edges, and each strip into boxes between the openings
+    that cross it, so openings may be stacked (a window above a door).
 
     Parameters
     ----------
     width, height, thickness : float
         Size of the wall.
     openings : sequence of (x_min, x_max, y_min, y_max)
-        Openings in wall coordinates; they must lie inside the wall and not
-        overlap in x. A door has ``y_min = 0``.
+        Openings in wall coordinates; they must lie inside the wall and must
+        not overlap each other. A door has ``y_min = 0``.
 
     Returns
     -------
@@ -878,29 +880,29 @@ def wall_with_openings(width, height, thickness, openings=()):
     Raises
     ------
     ValueError
-        An opening outside the wall or overlapping another.
+        An opening outside the wall, or two overlapping openings.
     """
     half_width = 0.5 * width
     openings = sorted(tuple(float(v) for v in opening) for opening in openings)
     for x0, x1, y0, y1 in openings:
         if not (-half_width < x0 < x1 < half_width and 0 <= y0 < y1 < height):
             raise ValueError(f"opening {(x0, x1, y0, y1)} does not fit in the wall")
-    for (_, previous_x1, _, _), (next_x0, _, _, _) in zip(openings, openings[1:]):
-        if next_x0 <= previous_x1:
-            raise ValueError("wall openings must not overlap in x")
+    for index, first in enumerate(openings):
+        for second in openings[index + 1 :]:
+            if first[0] < second[1] and second[0] < first[1] and first[2] < second[3] and second[2] < first[3]:
+                raise ValueError(f"wall openings {first} and {second} overlap")
+    edges = sorted({-half_width, half_width} | {x for opening in openings for x in opening[:2]})
     pieces = []
-
-    def slab(x0, x1, y0, y1):
-        if x1 - x0 > 1e-9 and y1 - y0 > 1e-9:
-            pieces.append(box((x1 - x0, y1 - y0, thickness), (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0)))
-
-    x = -half_width
-    for x0, x1, y0, y1 in openings:
-        slab(x, x0, 0.0, height)
-        slab(x0, x1, 0.0, y0)
-        slab(x0, x1, y1, height)
-        x = x1
-    slab(x, half_width, 0.0, height)
+    for x0, x1 in zip(edges[:-1], edges[1:]):
+        if x1 - x0 <= 1e-9:
+            continue
+        middle = 0.5 * (x0 + x1)
+        gaps = sorted((y0, y1) for ox0, ox1, y0, y1 in openings if ox0 < middle < ox1)
+        bottom = 0.0
+        for y0, y1 in gaps + [(height, height)]:
+            if y0 - bottom > 1e-9:
+                pieces.append(box((x1 - x0, y0 - bottom, thickness), (middle, 0.5 * (bottom + y0), 0.0)))
+            bottom = y1
     return merge(pieces)
 
 

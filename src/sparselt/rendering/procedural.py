@@ -14,11 +14,18 @@ is pure Python: it never imports Mitsuba.
     a large area light and a dim constant environment. Strong defocus blur in
     front of and behind the focused sculpture. The default demo scene.
 ``courtyard``
-    In the spirit of "San Miguel": a courtyard surrounded on three sides by
-    arcades (fluted columns carrying arches) in front of walls with doors and
-    windows, under a low sun and a sky, with a fountain, potted plants,
-    benches and crates; a glossy tiled floor. Much of the arcades is lit only
-    indirectly. Pinhole camera.
+    In the spirit of "San Miguel": a square court closed on three sides by
+    two-storey buildings with arcades (fluted columns carrying arches) in
+    front of galleries whose back walls have doors and windows into rooms,
+    and by a low building on the fourth side. A fountain, potted plants,
+    benches, cafe tables and chairs, crates, barrels and copper urns (well
+    over a hundred instances, merged into one mesh per material). A low sun
+    shines through the arches into two of the galleries; the third gallery,
+    the rooms and much of the court are lit by the sky and by light bounced
+    off the walls and the glossy tiled floor. Pinhole camera.
+
+The meshes of each scene are cached PLY files (see :func:`meshes.mesh_file`):
+the first build takes about a second, later ones a few milliseconds.
 """
 
 from __future__ import annotations
@@ -39,11 +46,11 @@ def _rgb(value):
     return {"type": "rgb", "value": [float(v) for v in value]}
 
 
-def _standing(mesh, height=1.0):
-    """Scale ``mesh`` to ``height`` and move it to rest on ``y = 0``, centred on the y axis."""
+def _standing(mesh, size=1.0):
+    """Scale ``mesh`` to largest extent ``size`` and move it to rest on ``y = 0``, centred on the y axis."""
     low, high = mesh.bounding_box()
     mesh = mesh.translated((-0.5 * (low[0] + high[0]), -low[1], -0.5 * (low[2] + high[2])))
-    return mesh.scaled(height / (high[1] - low[1]))
+    return mesh.scaled(size / float(np.max(high - low)))
 
 
 def _ply(path, bsdf, to_world=None):
@@ -70,33 +77,34 @@ def _metal(material, alpha):
 # ---------------------------------------------------------------------------
 
 #: Camera of ``dof-sculptures``: position, and the point it looks at.
-DOF_CAMERA_ORIGIN = (1.1, 1.05, 5.2)
-DOF_CAMERA_TARGET = (0.0, 0.55, 0.0)
+DOF_CAMERA_ORIGIN = (0.55, 1.3, 6.6)
+DOF_CAMERA_TARGET = (0.0, 0.45, 0.0)
 
-#: Sculptures of ``dof-sculptures``: (name, ground position (x, z), height
-#: (the meshes are generated with unit height), rotation about y in degrees). The middle one, "dragon", is
-#: in focus.
+#: Sculptures of ``dof-sculptures``: (name, ground position (x, z), size (the
+#: largest extent; the meshes are generated with unit size), rotation about y
+#: in degrees). The middle one, "dragon", is in focus.
 DOF_SCULPTURES = (
-    ("blob", (0.95, 2.85), 0.75, 20.0),
-    ("knot", (-0.55, 1.55), 0.95, -25.0),
-    ("dragon", (0.0, 0.0), 1.10, 35.0),
-    ("vase", (-1.05, -1.9), 1.30, 0.0),
-    ("dragon-back", (0.85, -4.1), 1.25, 100.0),
+    ("blob", (-0.5, 3.4), 0.8, 20.0),
+    ("knot", (1.1, 1.7), 1.0, -30.0),
+    ("dragon", (0.0, 0.0), 1.25, 20.0),
+    ("vase", (-1.3, -2.4), 1.2, 0.0),
+    ("dragon-back", (0.5, -6.0), 1.5, 110.0),
 )
 
 
 def _dof_blob(subdivisions):
-    return _standing(meshes.blob(radius=1.0, subdivisions=subdivisions, amplitude=0.22, frequency=8.0, sharpness=0.5, seed=7))
+    return _standing(meshes.blob(radius=1.0, subdivisions=subdivisions, amplitude=0.2, frequency=12.0, sharpness=0.6, seed=7))
 
 
 def _dof_knot(segments, sides):
-    return _standing(meshes.torus_knot(p=3, q=5, knot_radius=1.0, tube_radius=0.1, segments=segments, sides=sides))
+    mesh = meshes.torus_knot(p=3, q=5, knot_radius=1.0, tube_radius=0.11, segments=segments, sides=sides)
+    return _standing(mesh.rotated((1.0, 0.0, 0.0), 75.0))
 
 
-def _dof_dragon(segments, sides, seed_twists):
-    mesh = meshes.spiked_torus_knot(p=2, q=3, segments=segments, sides=sides, twists=seed_twists)
-    # Stand the knot up (its loops vertical) like a coiled serpent.
-    return _standing(mesh.rotated((1.0, 0.0, 0.0), 90.0 - 25.0))
+def _dof_dragon(segments, sides, twists):
+    mesh = meshes.spiked_torus_knot(p=2, q=3, segments=segments, sides=sides, twists=twists)
+    # Stand the knot up (its loops nearly vertical) like a coiled serpent.
+    return _standing(mesh.rotated((1.0, 0.0, 0.0), 65.0))
 
 
 def _dof_vase(segments, flutes):
@@ -107,9 +115,9 @@ def _dof_mesh_files():
     return {
         "blob": meshes.mesh_file("dof-blob", _dof_blob, subdivisions=6),
         "knot": meshes.mesh_file("dof-knot", _dof_knot, segments=1024, sides=36),
-        "dragon": meshes.mesh_file("dof-dragon", _dof_dragon, segments=1200, sides=48, seed_twists=5),
+        "dragon": meshes.mesh_file("dof-dragon", _dof_dragon, segments=1200, sides=48, twists=5),
         "vase": meshes.mesh_file("dof-vase", _dof_vase, segments=144, flutes=24),
-        "dragon-back": meshes.mesh_file("dof-dragon-back", _dof_dragon, segments=960, sides=40, seed_twists=3),
+        "dragon-back": meshes.mesh_file("dof-dragon-back", _dof_dragon, segments=960, sides=40, twists=3),
     }
 
 
@@ -118,8 +126,8 @@ def dof_focus_distance():
     origin = np.asarray(DOF_CAMERA_ORIGIN)
     direction = np.asarray(DOF_CAMERA_TARGET) - origin
     direction /= np.linalg.norm(direction)
-    _, (x, z), height, _ = next(entry for entry in DOF_SCULPTURES if entry[0] == "dragon")
-    centre = np.array([x, 0.5 * height, z])
+    _, (x, z), size, _ = next(entry for entry in DOF_SCULPTURES if entry[0] == "dragon")
+    centre = np.array([x, 0.4 * size, z])
     return float(np.dot(centre - origin, direction))
 
 
@@ -131,14 +139,14 @@ def dof_sculptures():
         "knot": _metal("Cu", 0.18),
         "dragon": _metal("Au", 0.12),
         "vase": _plastic((0.08, 0.22, 0.55), 0.06),
-        "dragon-back": _metal("Al", 0.22),
+        "dragon-back": _plastic((0.10, 0.42, 0.25), 0.15),
     }
     objects = {"type": "scene"}
-    for name, (x, z), height, angle in DOF_SCULPTURES:
+    for name, (x, z), size, angle in DOF_SCULPTURES:
         objects[name] = _ply(
             files[name],
             materials[name],
-            Transform().translate((x, 0.0, z)).rotate((0.0, 1.0, 0.0), angle).scale(height),
+            Transform().translate((x, 0.0, z)).rotate((0.0, 1.0, 0.0), angle).scale(size),
         )
     objects["floor"] = {
         "type": "rectangle",
@@ -151,7 +159,7 @@ def dof_sculptures():
                 "type": "checkerboard",
                 "color0": _rgb((0.42, 0.40, 0.37)),
                 "color1": _rgb((0.13, 0.13, 0.14)),
-                "to_uv": Transform().scale((60.0, 60.0, 1.0)),
+                "to_uv": Transform().scale((90.0, 90.0, 1.0)),
             },
         },
     }
@@ -159,16 +167,16 @@ def dof_sculptures():
         "type": "rectangle",
         "to_world": Transform().look_at((-3.5, 6.0, 3.0), (0.0, 0.0, -0.5), (0.0, 1.0, 0.0)).scale(1.6),
         "bsdf": _diffuse((0.0, 0.0, 0.0)),
-        "emitter": {"type": "area", "radiance": _rgb((9.0, 8.4, 7.6))},
+        "emitter": {"type": "area", "radiance": _rgb((14.0, 13.0, 11.5))},
     }
-    objects["environment"] = {"type": "constant", "radiance": _rgb((0.16, 0.18, 0.22))}
+    objects["environment"] = {"type": "constant", "radiance": _rgb((0.20, 0.22, 0.27))}
     camera = Camera(
         to_world=Transform().look_at(DOF_CAMERA_ORIGIN, DOF_CAMERA_TARGET, (0.0, 1.0, 0.0)),
-        fov=38.0,
+        fov=34.0,
         fov_axis="x",
         near_clip=0.01,
         far_clip=100.0,
-        aperture_radius=0.16,
+        aperture_radius=0.32,
         focus_distance=dof_focus_distance(),
     )
     return SceneSpec(
@@ -180,173 +188,294 @@ def dof_sculptures():
     )
 
 
+
 # ---------------------------------------------------------------------------
 # courtyard
 # ---------------------------------------------------------------------------
 
-#: Half width of the square courtyard (metres); arcades stand on three sides.
-COURTYARD_HALF_WIDTH = 6.0
-#: Column spacing along an arcade, column height, gallery depth behind the columns.
-ARCADE_SPACING = 2.0
+#: Half width of the open, square court (metres): ``|x|, |z| <= COURTYARD_HALF_WIDTH``.
+COURTYARD_HALF_WIDTH = 7.0
+#: Distance between column centres along an arcade.
+ARCADE_BAY = 2.0
+#: Height of a column (to the top of its capital), where the arches spring.
 ARCADE_COLUMN_HEIGHT = 3.0
-ARCADE_GALLERY_DEPTH = 2.2
-ARCADE_ARCH_HEIGHT = 1.4
+#: Height of the top of the arcade's spandrels (the gallery ceiling).
+ARCADE_TOP = 4.2
+#: Depth of the gallery behind the columns and of the rooms behind the gallery.
+GALLERY_DEPTH = 3.0
+ROOM_DEPTH = 3.5
+#: Height of the buildings with arcades, and of the low building on the open side.
+BUILDING_HEIGHT = 7.0
+SOUTH_BUILDING_HEIGHT = 4.2
+
+#: Mesh generators that courtyard placements may name.
+_PART_GENERATORS = {
+    "arch": meshes.arch,
+    "blob": meshes.blob,
+    "box": meshes.box,
+    "column": meshes.column,
+    "lathe": meshes.lathe,
+    "vase": meshes.vase,
+    "wall": meshes.wall_with_openings,
+}
 
 
-def _arcade_sides():
-    """(rotation about y, outward direction) of the three arcades: left, back, right."""
-    return ((90.0, (-1.0, 0.0, 0.0)), (0.0, (0.0, 0.0, -1.0)), (-90.0, (1.0, 0.0, 0.0)))
+def _place(kind, matrix, **parameters):
+    """One instance for :func:`_assemble`: generator name, its parameters, and a 4x4 world matrix."""
+    return {"kind": kind, "parameters": parameters, "transform": np.asarray(matrix, dtype=np.float64).round(9).tolist()}
 
 
-def _arcade_frames():
-    """World transforms (4x4) placing an arcade built along x at z = 0 on each side."""
-    frames = []
-    for angle, outward in _arcade_sides():
-        rotation = meshes.rotation_matrix((0.0, 1.0, 0.0), angle)
-        translation = meshes.translation_matrix(np.asarray(outward) * COURTYARD_HALF_WIDTH)
-        frames.append(translation @ rotation)
-    return frames
+def _assemble(placements):
+    """Merge instances of generated meshes into one mesh (a cache builder for :func:`meshes.mesh_file`).
+
+    Parameters
+    ----------
+    placements : list of dict
+        As made by :func:`_place`. Identical generator calls are made once.
+
+    Returns
+    -------
+    meshes.TriangleMesh
+    """
+    generated = {}
+    pieces = []
+    for placement in placements:
+        key = repr((placement["kind"], sorted(placement["parameters"].items())))
+        if key not in generated:
+            generated[key] = _PART_GENERATORS[placement["kind"]](**placement["parameters"])
+        pieces.append(generated[key].transformed(np.asarray(placement["transform"])))
+    return meshes.merge(pieces)
 
 
-def _column_positions():
+def _matrix(translate=(0.0, 0.0, 0.0), rotate_y=0.0, scale=1.0):
+    """``translate @ rotate about y @ scale`` as a 4x4 matrix."""
+    return (
+        meshes.translation_matrix(translate)
+        @ meshes.rotation_matrix((0.0, 1.0, 0.0), rotate_y)
+        @ meshes.scaling_matrix(scale)
+    )
+
+
+def _side_frame(angle_degrees):
+    """Frame of one side of the court: local x along the arcade, local z outwards, z = 0 on the arcade line."""
+    return meshes.rotation_matrix((0.0, 1.0, 0.0), angle_degrees) @ meshes.translation_matrix((0.0, 0.0, COURTYARD_HALF_WIDTH))
+
+
+#: The sides with arcades (rotation of the side frame about y): north (z < 0), west (x < 0), east (x > 0).
+_ARCADE_SIDES = {"north": 180.0, "west": -90.0, "east": 90.0}
+
+
+def _courtyard_layout():
+    """Every instance of the courtyard, grouped by material.
+
+    Returns
+    -------
+    dict
+        Material group name -> list of placements (see :func:`_place`).
+    """
+    rng = np.random.default_rng(2024)
     half = COURTYARD_HALF_WIDTH
-    count = int(round(2 * half / ARCADE_SPACING)) + 1
-    return np.linspace(-half, half, count)
+    depth = GALLERY_DEPTH + ROOM_DEPTH
+    bays = np.arange(-half + 0.5 * ARCADE_BAY, half, ARCADE_BAY)  # bay centres along a side
+    groups = {name: [] for name in ("columns", "stone", "plaster", "terracotta", "foliage", "wood", "metal")}
+    arch_parameters = dict(inner_radius=0.5 * ARCADE_BAY - 0.3, outer_radius=0.5 * ARCADE_BAY, depth=0.5,
+                           segments=40, outer_height=ARCADE_TOP - ARCADE_COLUMN_HEIGHT)  # fmt: skip
+    column_parameters = dict(height=ARCADE_COLUMN_HEIGHT, radius=0.2, flutes=20, segments=80, detail=6)
+    for side, angle in _ARCADE_SIDES.items():
+        frame = _side_frame(angle)
+        # Columns: the north arcade has the corner columns, the side arcades stop short of them
+        # (and of the south building).
+        columns = np.arange(-half, half + 1e-9, ARCADE_BAY)
+        if side != "north":
+            columns = columns[1:-1]
+        for x in columns:
+            groups["columns"].append(_place("column", frame @ _matrix((x, 0.0, 0.0)), **column_parameters))
+        for x in bays:
+            groups["stone"].append(_place("arch", frame @ _matrix((x, ARCADE_COLUMN_HEIGHT, 0.0)), **arch_parameters))
+        # String course above the arches and cornice under the roof.
+        groups["stone"].append(_place("box", frame @ _matrix((0.0, ARCADE_TOP + 0.08, 0.0)), size=(2 * half, 0.16, 0.62)))
+        groups["stone"].append(_place("box", frame @ _matrix((0.0, BUILDING_HEIGHT - 0.1, -0.05)), size=(2 * half, 0.2, 0.7)))
+        # Upper storey facade over the arcade, with a window over every bay.
+        upper = BUILDING_HEIGHT - ARCADE_TOP
+        windows = [(x - 0.4, x + 0.4, 0.9, 2.2) for x in bays]
+        groups["plaster"].append(
+            _place("wall", frame @ _matrix((0.0, ARCADE_TOP, 0.0)), width=2 * half, height=upper, thickness=0.4, openings=windows)
+        )
+        # Window sills.
+        for x in bays:
+            groups["stone"].append(_place("box", frame @ _matrix((x, ARCADE_TOP + 0.86, -0.06)), size=(1.0, 0.08, 0.55)))
+        # Gallery ceiling (and the floor of the upper storey), and the roof with an overhang.
+        groups["plaster"].append(_place("box", frame @ _matrix((0.0, ARCADE_TOP - 0.125, 0.5 * depth)), size=(2 * half, 0.25, depth)))
+        groups["plaster"].append(
+            _place("box", frame @ _matrix((0.0, BUILDING_HEIGHT + 0.1, 0.5 * depth - 0.4)), size=(2 * half + 0.8, 0.2, depth + 0.8))
+        )
+        # Back wall of the gallery: doors and windows into the rooms behind, alternating.
+        openings = []
+        for index, x in enumerate(bays):
+            if index % 2 == 0:
+                openings.append((x - 0.55, x + 0.55, 0.0, 2.5))
+            else:
+                openings.append((x - 0.45, x + 0.45, 1.0, 2.4))
+        groups["plaster"].append(
+            _place("wall", frame @ _matrix((0.0, 0.0, GALLERY_DEPTH)), width=2 * half, height=ARCADE_TOP - 0.25, thickness=0.3,
+                   openings=openings)  # fmt: skip
+        )
+        # Rear wall of the rooms, with windows to the outside on both storeys.
+        rear_windows = [(x - 0.4, x + 0.4, 1.2, 2.4) for x in bays[1::2]] + [(x - 0.4, x + 0.4, 5.2, 6.3) for x in bays[::2]]
+        groups["plaster"].append(
+            _place("wall", frame @ _matrix((0.0, 0.0, depth)), width=2 * half, height=BUILDING_HEIGHT, thickness=0.3,
+                   openings=rear_windows)  # fmt: skip
+        )
+        # Benches against the back wall under the windows, pots between the doors.
+        for index, x in enumerate(bays):
+            if index % 2 == 1:
+                bench = frame @ _matrix((x, 0.0, GALLERY_DEPTH - 0.45), 180.0)
+                for size, centre in (((1.4, 0.07, 0.42), (0.0, 0.45, 0.0)), ((0.08, 0.42, 0.36), (-0.6, 0.21, 0.0)),
+                                     ((0.08, 0.42, 0.36), (0.6, 0.21, 0.0)), ((1.4, 0.35, 0.05), (0.0, 0.75, 0.2))):  # fmt: skip
+                    groups["wood"].append(_place("box", bench, size=size, center=centre))
+            else:
+                for offset in (-0.85, 0.85):
+                    if abs(x + offset) < half - 0.4:
+                        _potted_plant(groups, frame @ _matrix((x + offset, 0.0, GALLERY_DEPTH - 0.45)), rng, 0.75)
+        # Pots along the arcade, on the court side between the columns.
+        for x in bays:
+            _potted_plant(groups, frame @ _matrix((x, 0.0, -0.75)), rng, 1.0)
+    # Solid corner blocks behind the north corners, and the low building on the open (south) side.
+    for sign in (-1.0, 1.0):
+        groups["plaster"].append(
+            _place("box", _matrix((sign * (half + 0.5 * depth), 0.5 * BUILDING_HEIGHT, -(half + 0.5 * depth))),
+                   size=(depth, BUILDING_HEIGHT, depth))  # fmt: skip
+        )
+    south_width = 2 * (half + depth)
+    south_openings = [(x - 0.5, x + 0.5, 1.0, 2.6) for x in np.arange(-half + 1.0, half, 2.0)]
+    groups["plaster"].append(
+        _place("wall", _matrix((0.0, 0.0, half + 0.15)), width=south_width, height=SOUTH_BUILDING_HEIGHT, thickness=0.3,
+               openings=south_openings)  # fmt: skip
+    )
+    groups["plaster"].append(
+        _place("box", _matrix((0.0, 0.5 * SOUTH_BUILDING_HEIGHT, half + 0.3 + 0.5 * depth)), size=(south_width, SOUTH_BUILDING_HEIGHT, depth))
+    )
+    groups["stone"].append(_place("box", _matrix((0.0, SOUTH_BUILDING_HEIGHT + 0.1, half + 0.5 * depth)), size=(south_width, 0.2, depth + 0.6)))
+    # The fountain in the middle: a basin, a fluted pedestal and a bowl.
+    basin_profile = [(0.0, 0.0), (1.6, 0.0), (1.6, 0.5), (1.7, 0.5), (1.7, 0.62), (1.45, 0.62), (1.45, 0.15), (0.0, 0.15)]
+    groups["stone"].append(_place("lathe", _matrix(), profile=basin_profile, segments=128))
+    groups["stone"].append(_place("column", _matrix(), height=1.5, radius=0.16, flutes=12, segments=96, detail=5))
+    groups["stone"].append(_place("vase", _matrix((0.0, 1.5, 0.0)), height=0.3, radius=0.6, wall=0.05, flutes=16,
+                                  segments=128, detail=12, shape=2))  # fmt: skip
+    # Potted plants in a ring around the fountain.
+    for index in range(8):
+        angle = 2.0 * math.pi * (index + 0.5) / 8
+        _potted_plant(groups, _matrix((3.0 * math.cos(angle), 0.0, 3.0 * math.sin(angle))), rng, 0.9)
+    # Benches facing the fountain.
+    for index in range(4):
+        angle = 90.0 * index
+        bench = _matrix((0.0, 0.0, 0.0), angle) @ _matrix((0.0, 0.0, 4.6))
+        for size, centre in (((1.8, 0.08, 0.45), (0.0, 0.45, 0.0)), ((0.1, 0.42, 0.4), (-0.75, 0.21, 0.0)),
+                             ((0.1, 0.42, 0.4), (0.75, 0.21, 0.0))):  # fmt: skip
+            groups["stone"].append(_place("box", bench, size=size, center=centre))
+    # Cafe tables (metal) with four wooden chairs each, in the court's corners.
+    table_profile = [(0.0, 0.0), (0.3, 0.0), (0.3, 0.03), (0.06, 0.07), (0.04, 0.7), (0.45, 0.72), (0.45, 0.76), (0.0, 0.76)]
+    for x, z in ((-4.7, -4.7), (4.7, -4.7), (-4.7, 4.5), (4.7, 2.6)):
+        groups["metal"].append(_place("lathe", _matrix((x, 0.0, z)), profile=table_profile, segments=64))
+        for index in range(4):
+            angle = 90.0 * index + rng.uniform(-20.0, 20.0)
+            chair = _matrix((x, 0.0, z), angle) @ _matrix((0.0, 0.0, 0.75 + rng.uniform(0.0, 0.15)))
+            for size, centre in (((0.42, 0.05, 0.42), (0.0, 0.45, 0.0)), ((0.42, 0.45, 0.04), (0.0, 0.7, 0.19)),
+                                 ((0.04, 0.45, 0.04), (-0.18, 0.225, -0.18)), ((0.04, 0.45, 0.04), (0.18, 0.225, -0.18)),
+                                 ((0.04, 0.45, 0.04), (-0.18, 0.225, 0.18)), ((0.04, 0.45, 0.04), (0.18, 0.225, 0.18))):  # fmt: skip
+                groups["wood"].append(_place("box", chair, size=size, center=centre))
+    # Stacked crates and barrels in the east gallery (lit only indirectly).
+    east = _side_frame(_ARCADE_SIDES["east"])
+    barrel_profile = [(0.0, 0.0), (0.26, 0.0)] + [
+        (0.26 + 0.06 * math.sin(math.pi * t), 0.8 * t) for t in np.linspace(0.0, 1.0, 13)[1:-1]
+    ] + [(0.26, 0.8), (0.0, 0.8)]  # fmt: skip
+    for index in range(10):
+        x = -5.5 + 1.1 * index + rng.uniform(-0.2, 0.2)
+        z = rng.uniform(0.8, GALLERY_DEPTH - 0.5)
+        size = rng.uniform(0.45, 0.7)
+        crate = east @ _matrix((x, 0.0, z), rng.uniform(0.0, 90.0))
+        groups["wood"].append(_place("box", crate, size=(size, size, size), center=(0.0, 0.5 * size, 0.0)))
+        if index % 3 == 0:
+            top = rng.uniform(0.3, 0.45)
+            groups["wood"].append(_place("box", crate @ _matrix((0.0, size, 0.0), rng.uniform(-30.0, 30.0)), size=(top, top, top),
+                                         center=(0.0, 0.5 * top, 0.0)))  # fmt: skip
+        if index % 2 == 1:
+            groups["wood"].append(_place("lathe", east @ _matrix((x + 0.55, 0.0, z - 0.5)), profile=barrel_profile, segments=48))
+    # Copper urns on stone plinths at the court's corners.
+    for x, z in ((-6.2, -6.2), (6.2, -6.2), (-6.2, 6.3), (6.2, 6.3)):
+        groups["stone"].append(_place("box", _matrix((x, 0.0, z)), size=(0.55, 0.8, 0.55), center=(0.0, 0.4, 0.0)))
+        groups["metal"].append(_place("vase", _matrix((x, 0.8, z)), height=0.7, radius=0.28, wall=0.02, flutes=12,
+                                      segments=96, detail=24, shape=0))  # fmt: skip
+    return groups
 
 
-def _courtyard_columns(flutes, segments):
-    column = meshes.column(height=ARCADE_COLUMN_HEIGHT, radius=0.2, flutes=flutes, segments=segments, detail=6)
-    pieces = []
-    for frame in _arcade_frames():
-        for x in _column_positions()[1:-1]:
-            pieces.append(column.translated((x, 0.0, 0.0)).transformed(frame))
-    return meshes.merge(pieces)
+def _potted_plant(groups, matrix, rng, size):
+    """Add a terracotta pot and a leafy blob (own noise seed) at ``matrix``, scaled by ``size``."""
+    scale = size * rng.uniform(0.85, 1.15)
+    pot = matrix @ _matrix(rotate_y=rng.uniform(0.0, 360.0), scale=scale)
+    groups["terracotta"].append(_place("vase", pot, height=0.55, radius=0.28, wall=0.025, segments=48, detail=12, shape=1))
+    seed = int(rng.integers(0, 2**31 - 1))
+    plant = pot @ _matrix((0.0, 0.72, 0.0), scale=(1.0, 0.8, 1.0))
+    groups["foliage"].append(_place("blob", plant, radius=0.36, subdivisions=4, amplitude=0.35, frequency=14.0,
+                                    wave_count=40, sharpness=0.8, seed=seed))  # fmt: skip
 
 
-def _courtyard_arches(segments):
-    half_span = 0.5 * ARCADE_SPACING
-    arch = meshes.arch(inner_radius=half_span - 0.22, outer_radius=half_span, depth=0.5, segments=segments,
-                       outer_height=ARCADE_ARCH_HEIGHT)
-    pieces = []
-    for frame in _arcade_frames():
-        for left, right in zip(_column_positions()[:-1], _column_positions()[1:]):
-            pieces.append(arch.translated((0.5 * (left + right), ARCADE_COLUMN_HEIGHT, 0.0)).transformed(frame))
-        # Roof slab of the gallery, resting on the arches and the back wall.
-        roof = meshes.box((2 * COURTYARD_HALF_WIDTH + ARCADE_GALLERY_DEPTH * 2, 0.25, ARCADE_GALLERY_DEPTH + 0.5),
-                          (0.0, ARCADE_COLUMN_HEIGHT + ARCADE_ARCH_HEIGHT + 0.125, -0.5 * ARCADE_GALLERY_DEPTH))
-        pieces.append(roof.transformed(frame))
-    return meshes.merge(pieces)
-
-
-def _courtyard_walls():
-    """Outer walls of the galleries with doors and windows (light enters through them)."""
-    height = ARCADE_COLUMN_HEIGHT + ARCADE_ARCH_HEIGHT
-    width = 2 * (COURTYARD_HALF_WIDTH + ARCADE_GALLERY_DEPTH) + 0.3
-    openings = []
-    for x in np.arange(-COURTYARD_HALF_WIDTH + 1.0, COURTYARD_HALF_WIDTH, 2.0):
-        if abs(x) < 0.5:
-            openings.append((x - 0.6, x + 0.6, 0.0, 2.6))  # door
-        else:
-            openings.append((x - 0.35, x + 0.35, 1.2, 2.6))  # window
-    wall = meshes.wall_with_openings(width, height, 0.3, openings)
-    pieces = []
-    for frame in _arcade_frames():
-        pieces.append(wall.translated((0.0, 0.0, -ARCADE_GALLERY_DEPTH)).transformed(frame))
-    return meshes.merge(pieces)
-
-
-def _courtyard_pots(segments):
-    rng = np.random.default_rng(11)
-    pot = meshes.vase(height=1.0, radius=0.4, wall=0.04, flutes=0, segments=segments, detail=12, shape=1)
-    pieces = []
-    for frame in _arcade_frames():
-        for x in _column_positions()[1:-1]:
-            for offset in (-0.45, 0.45):
-                size = rng.uniform(0.35, 0.6)
-                angle = rng.uniform(0.0, 360.0)
-                placed = pot.rotated((0.0, 1.0, 0.0), angle).scaled(size).translated((x + offset, 0.0, 0.45))
-                pieces.append(placed.transformed(frame))
-    return meshes.merge(pieces)
-
-
-def _courtyard_crates_and_benches():
-    rng = np.random.default_rng(5)
-    pieces = []
-    # Benches between the columns in each gallery.
-    seat = meshes.merge([
-        meshes.box((1.2, 0.08, 0.4), (0.0, 0.45, 0.0)),
-        meshes.box((0.08, 0.45, 0.36), (-0.5, 0.225, 0.0)),
-        meshes.box((0.08, 0.45, 0.36), (0.5, 0.225, 0.0)),
-    ])
-    for frame in _arcade_frames():
-        for x in _column_positions()[1:-1:2]:
-            pieces.append(seat.translated((x + 1.0, 0.0, -1.4)).transformed(frame))
-    # Stacks of crates scattered in the galleries' corners and in the courtyard.
-    for _ in range(36):
-        side = _arcade_frames()[int(rng.integers(0, 3))]
-        size = rng.uniform(0.25, 0.5)
-        x = rng.uniform(-COURTYARD_HALF_WIDTH + 0.6, COURTYARD_HALF_WIDTH - 0.6)
-        z = rng.uniform(-ARCADE_GALLERY_DEPTH + 0.4, -0.5)
-        crate = meshes.box((size, size, size), (0.0, 0.5 * size, 0.0)).rotated((0.0, 1.0, 0.0), rng.uniform(0, 90))
-        pieces.append(crate.translated((x, 0.0, z)).transformed(side))
-    return meshes.merge(pieces)
-
-
-def _courtyard_fountain(segments):
-    basin = meshes.vase(height=0.5, radius=1.4, wall=0.12, flutes=0, segments=segments, detail=16, shape=2)
-    pedestal = meshes.column(height=1.6, radius=0.16, flutes=12, segments=segments, detail=4)
-    bowl = meshes.vase(height=0.25, radius=0.55, wall=0.05, flutes=16, segments=segments, detail=10, shape=2)
-    return meshes.merge([basin, pedestal, bowl.translated((0.0, 1.6, 0.0))])
+def _courtyard_materials():
+    """BSDF of each material group of :func:`_courtyard_layout`."""
+    return {
+        "columns": _plastic((0.80, 0.76, 0.68), 0.2),
+        "stone": _plastic((0.66, 0.60, 0.50), 0.35),
+        "plaster": _diffuse((0.78, 0.56, 0.36)),
+        "terracotta": _diffuse((0.56, 0.24, 0.11)),
+        "foliage": _diffuse((0.10, 0.30, 0.07)),
+        "wood": _plastic((0.36, 0.21, 0.10), 0.25),
+        "metal": _metal("Cu", 0.2),
+    }
 
 
 @register("courtyard")
 def courtyard():
-    files = {
-        "columns": meshes.mesh_file("courtyard-columns", _courtyard_columns, flutes=20, segments=80),
-        "arches": meshes.mesh_file("courtyard-arches", _courtyard_arches, segments=48),
-        "walls": meshes.mesh_file("courtyard-walls", _courtyard_walls),
-        "pots": meshes.mesh_file("courtyard-pots", _courtyard_pots, segments=48),
-        "furniture": meshes.mesh_file("courtyard-furniture", _courtyard_crates_and_benches),
-        "fountain": meshes.mesh_file("courtyard-fountain", _courtyard_fountain, segments=96),
-    }
-    stone = _plastic((0.62, 0.55, 0.45), 0.35)
-    objects = {
-        "type": "scene",
-        "columns": _ply(files["columns"], _plastic((0.78, 0.74, 0.66), 0.25)),
-        "arches": _ply(files["arches"], stone),
-        "walls": _ply(files["walls"], _diffuse((0.70, 0.52, 0.36))),
-        "pots": _ply(files["pots"], _plastic((0.55, 0.22, 0.10), 0.3)),
-        "furniture": _ply(files["furniture"], _diffuse((0.42, 0.28, 0.16))),
-        "fountain": _ply(files["fountain"], _metal("Cu", 0.15), Transform().translate((0.0, 0.0, -1.0))),
-        "floor": {
-            "type": "rectangle",
-            "to_world": Transform().rotate((1.0, 0.0, 0.0), -90.0).scale(COURTYARD_HALF_WIDTH + ARCADE_GALLERY_DEPTH + 1.0),
-            "bsdf": {
-                "type": "roughplastic",
-                "distribution": "ggx",
-                "alpha": 0.05,
-                "diffuse_reflectance": {
-                    "type": "checkerboard",
-                    "color0": _rgb((0.55, 0.50, 0.44)),
-                    "color1": _rgb((0.30, 0.22, 0.17)),
-                    "to_uv": Transform().scale((18.0, 18.0, 1.0)),
-                },
+    layout = _courtyard_layout()
+    materials = _courtyard_materials()
+    objects = {"type": "scene"}
+    for group, placements in layout.items():
+        objects[group] = _ply(meshes.mesh_file(f"courtyard-{group}", _assemble, placements=placements), materials[group])
+    extent = COURTYARD_HALF_WIDTH + GALLERY_DEPTH + ROOM_DEPTH + 1.0
+    tiles = 2.0 * extent / 0.6  # 60 cm tiles
+    objects["floor"] = {
+        "type": "rectangle",
+        "to_world": Transform().rotate((1.0, 0.0, 0.0), -90.0).scale(extent),
+        "bsdf": {
+            "type": "roughplastic",
+            "distribution": "ggx",
+            "alpha": 0.06,
+            "diffuse_reflectance": {
+                "type": "checkerboard",
+                "color0": _rgb((0.58, 0.48, 0.36)),
+                "color1": _rgb((0.40, 0.18, 0.09)),
+                "to_uv": Transform().scale((tiles, tiles, 1.0)),
             },
         },
-        "sun": {"type": "directional", "direction": [0.45, -0.55, -0.7], "irradiance": _rgb((5.0, 4.5, 3.7))},
-        "sky": {"type": "constant", "radiance": _rgb((0.30, 0.40, 0.55))},
     }
+    objects["water"] = {
+        "type": "disk",
+        "to_world": Transform().translate((0.0, 0.45, 0.0)).rotate((1.0, 0.0, 0.0), -90.0).scale(1.46),
+        "bsdf": _plastic((0.02, 0.05, 0.06), 0.02),
+    }
+    objects["sun"] = {"type": "directional", "direction": [-0.5, -0.62, -0.6], "irradiance": _rgb((4.6, 4.1, 3.4))}
+    objects["sky"] = {"type": "constant", "radiance": _rgb((0.36, 0.45, 0.62))}
     camera = Camera(
-        to_world=Transform().look_at((0.0, 1.6, 9.5), (0.0, 1.8, -2.0), (0.0, 1.0, 0.0)),
-        fov=70.0,
+        to_world=Transform().look_at((4.6, 1.7, 6.3), (-2.0, 2.5, -6.5), (0.0, 1.0, 0.0)),
+        fov=75.0,
         fov_axis="x",
         near_clip=0.01,
         far_clip=200.0,
     )
     return SceneSpec(
         name="courtyard",
-        description="Arcaded courtyard: columns, arches, walls with openings, pots and crates, sun and sky, glossy floor",
+        description="Arcaded courtyard: fluted columns, arches, walls with doors and windows, a fountain and "
+        "a hundred small objects, lit by a low sun and the sky through the openings; glossy tiled floor",
         objects=objects,
         camera=camera,
-        default_resolution=(160, 120),
+        default_resolution=(192, 128),
     )
