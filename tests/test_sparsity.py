@@ -440,6 +440,8 @@ def test_streaming_a_memory_mapped_signal_leaves_no_scratch_file(tmp_path):
         assert not streamed.exact
         assert np.all(np.abs(streamed.values - exact.values) <= streamed.error_bounds + 1e-6)
         assert signal_gini(mapped, domain=domain).values.tolist() == exact.values.tolist()
+        with_progress = signal_gini(mapped, domain=domain, progress=True, **FORCE_STREAMING)
+        assert with_progress.values.tolist() == streamed.values.tolist()
     assert os.listdir(scratch) == []
 
 
