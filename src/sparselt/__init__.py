@@ -7,6 +7,17 @@ toolkit implements is "Sparse Reconstruction of Multidimensional Light
 Transport Signals".
 """
 
+from .analysis.metrics import (
+    peak_signal_to_noise_ratio,
+    relative_mean_squared_error,
+    root_mean_squared_error,
+    structural_similarity,
+)
+from .analysis.sparsity import gini_index
+from .fourier.integration import integrate
+from .fourier.sparse import SparseFourier
+from .operators import PartialFourier
+from .recovery import RecoveryResult, cosamp, omp
 from .rendering.acquire import AcquisitionConfig, NonFiniteSampleError, acquire_signal
 from .rendering.layout import KINDS, path_layout
 from .rendering.scenes import get_scene, scene_names
@@ -14,8 +25,23 @@ from .signal import IncompleteSignalError, Signal, load_signal
 
 __version__ = "0.1.0"
 
+#: Short name of :func:`structural_similarity` (thesis 5.2).
+ssim = structural_similarity
+
 __all__ = [
     "AcquisitionConfig",
+    "PartialFourier",
+    "RecoveryResult",
+    "SparseFourier",
+    "cosamp",
+    "gini_index",
+    "integrate",
+    "omp",
+    "peak_signal_to_noise_ratio",
+    "relative_mean_squared_error",
+    "root_mean_squared_error",
+    "ssim",
+    "structural_similarity",
     "IncompleteSignalError",
     "KINDS",
     "NonFiniteSampleError",

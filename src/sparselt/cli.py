@@ -177,7 +177,7 @@ def _bench_integrate(arguments):
     from .provenance import check_output_folder
 
     check_output_folder(arguments.out, overwrite=arguments.overwrite)
-    run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes))
+    run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes), overwrite=True)
     return 0
 
 

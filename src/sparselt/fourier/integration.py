@@ -69,7 +69,7 @@ def period_mean_weights(size):
     return weights
 
 
-def integrate(representation, keep_axes=(0, 1), method="convolution", *, chunk=4096):
+def integrate(representation, keep_axes=(0, 1), method="convolution", *, chunk=None):
     """Mean of a sparse Fourier signal over every axis not in ``keep_axes``.
 
     Parameters
@@ -81,7 +81,9 @@ def integrate(representation, keep_axes=(0, 1), method="convolution", *, chunk=4
     method : {'sum', 'time', 'time-fft', 'convolution'}, optional
         See the module docstring; all agree to rounding.
     chunk : int, optional
-        Coefficients per block in the ``time`` method (bounds its memory).
+        Coefficients per block in the ``time`` method; by default enough for
+        about 2^20 basis values per block, so its memory is O(K + P) plus a
+        constant, as Table 4.1 says.
 
     Returns
     -------
@@ -131,6 +133,8 @@ def _time(representation, keep, integrated, chunk):
     output_shape = tuple(shape[axis] for axis in keep)
     channels = representation.channel_shape
     values = representation.values.reshape(representation.sparsity, -1)
+    points = int(np.prod(output_shape, dtype=np.int64))
+    chunk = chunk or max(1, (1 << 20) // max(1, points))
     result = np.zeros((int(np.prod(output_shape, dtype=np.int64)), values.shape[1]), dtype=np.complex128)
     weights = {axis: period_mean_weights(shape[axis]) for axis in integrated}
     for start in range(0, representation.sparsity, chunk):

@@ -1,0 +1,6 @@
+"""Linear operators (thesis 2.2): matrix-free sampling and representation operators."""
+
+from .base import LinearOperator, dot_test
+from .partial_fourier import PartialFourier
+
+__all__ = ["LinearOperator", "PartialFourier", "dot_test"]

@@ -1,0 +1,250 @@
+"""Point samples of a signal that is sparse in the n-D DFT (thesis 2.2, 3.1).
+
+``PartialFourier`` is ``A = S F^{-1}``: synthesise a grid signal from Fourier
+coefficients, then read it at a set of grid cells (the point basis that
+rendering measures in). It is matrix-free through the FFT backend, in float32
+or float64, with a persistent set of buffers so that CoSaMP's inner loops
+allocate nothing of signal size.
+
+Coefficients are orthonormal coordinates ``u``: the map from ``u`` to the
+full grid signal is an isometry, so proxies ``A^* r`` of different
+frequencies compare fairly.
+
+Complex signals (``real=False``)
+    ``u`` is the full spectrum with the unitary normalisation:
+    ``x = ifftn(u, norm='ortho')``.
+Real signals (``real=True``)
+    ``u`` lives on the half spectrum of ``numpy.fft.rfftn`` (last axis
+    ``n // 2 + 1``). Each *canonical* entry stands for a conjugate pair
+    ``(c(k), c(-k) = conj(c(k)))`` of the full spectrum and counts as two
+    coefficients; entries whose partner is themselves (self-conjugate) count
+    as one and are real; in the planes ``j = 0`` and ``j = n/2`` of the last
+    axis, where both members of a pair lie in the half spectrum, only the
+    canonical member (the smaller flat index) is a coordinate and the other is
+    held at zero. The operator is real-linear, and :meth:`adjoint` is the
+    adjoint in the real inner product ``Re <a, b>``.
+
+A cell sampled several times is given once, with the mean of its samples
+(that is how rendering measures it); unsampled cells are unknown.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..fourier import fft
+from ..fourier.sparse import SparseFourier
+from .base import LinearOperator
+
+DTYPES = {np.dtype(np.float32): np.dtype(np.complex64), np.dtype(np.float64): np.dtype(np.complex128)}
+
+
+class PartialFourier(LinearOperator):
+    """Samples at grid cells ``indices`` of the signal with Fourier coordinates ``u``.
+
+    Parameters
+    ----------
+    shape : sequence of int
+        Grid shape of the signal.
+    indices : array_like of int
+        Distinct flat C-order indices of the sampled cells.
+    real : bool, optional
+        Real signal, half-spectrum coordinates (default True).
+    dtype : {numpy.float32, numpy.float64}, optional
+        Precision of the samples (coefficients are the matching complex type).
+    threads : int, optional
+        FFT threads (default: every core).
+
+    Raises
+    ------
+    ValueError
+        Empty, out-of-range or repeated indices; bad shape or dtype.
+    """
+
+    def __init__(self, shape, indices, *, real=True, dtype=np.float32, threads=None):
+        try:
+            self.grid_shape = tuple(int(size) for size in shape)
+        except TypeError:
+            raise ValueError(f"shape must be a sequence of positive integers, got {shape!r}") from None
+        if not self.grid_shape or any(size <= 0 for size in self.grid_shape):
+            raise ValueError(f"shape must be a non-empty sequence of positive integers, got {shape!r}")
+        dtype = np.dtype(dtype)
+        if dtype not in DTYPES:
+            raise ValueError(f"dtype must be float32 or float64, got {dtype}")
+        self.real = bool(real)
+        self.sample_dtype = dtype if self.real else DTYPES[dtype]
+        self.coefficient_dtype = DTYPES[dtype]
+        self.size = math.prod(self.grid_shape)
+        indices = np.asarray(indices)
+        if indices.ndim != 1 or indices.size == 0:
+            raise ValueError("indices must be a non-empty 1-D array of sampled cells")
+        if not np.issubdtype(indices.dtype, np.integer):
+            raise ValueError(f"indices must be integers, got dtype {indices.dtype}")
+        indices = indices.astype(np.int64)
+        if indices.min() < 0 or indices.max() >= self.size:
+            bad = indices[(indices < 0) | (indices >= self.size)][0]
+            raise ValueError(f"sample index {bad} is out of range for shape {self.grid_shape} (0 <= index < {self.size})")
+        ordered = indices if np.all(indices[1:] > indices[:-1]) else np.sort(indices)
+        if np.any(ordered[1:] == ordered[:-1]):
+            repeated = int(ordered[1:][ordered[1:] == ordered[:-1]][0])
+            raise ValueError(f"sample indices must be distinct (cell {repeated} is repeated): give each cell once, "
+                             "with the mean of its samples")
+        self.indices = indices
+        self.threads = threads
+        if self.real:
+            last = self.grid_shape[-1]
+            self.coefficient_shape = self.grid_shape[:-1] + (last // 2 + 1,)
+        else:
+            self.coefficient_shape = self.grid_shape
+        self.input_size = math.prod(self.coefficient_shape)
+        self.output_size = int(indices.size)
+        self.input_dtype = self.coefficient_dtype
+        self.output_dtype = self.sample_dtype
+        self._axes = tuple(range(len(self.grid_shape)))
+        self.transforms = 0  # full FFTs performed, for cost accounting
+        self._grid = np.zeros(self.grid_shape, dtype=self.sample_dtype)  # zero except at sampled cells
+        self._spectrum = np.zeros(self.coefficient_shape, dtype=self.coefficient_dtype)  # zero except on a support
+        self._grid_out = np.empty(self.grid_shape, dtype=self.sample_dtype)  # synthesis output
+        self._spectrum_out = np.empty(self.coefficient_shape, dtype=self.coefficient_dtype)  # analysis output
+        if self.real:
+            self._plane_fixes()
+
+    # -- real half-spectrum bookkeeping ------------------------------------
+
+    def _plane_fixes(self):
+        """Flat indices of the non-canonical and the self-conjugate entries of the half spectrum."""
+        last = self.grid_shape[-1]
+        half = last // 2 + 1
+        planes = [0] + ([last // 2] if last % 2 == 0 and last > 1 else [])
+        other = self.grid_shape[:-1]
+        count = math.prod(other)
+        flat_other = np.arange(count, dtype=np.int64)
+        coordinates = np.unravel_index(flat_other, other) if other else ()
+        partner_other = np.ravel_multi_index(tuple((-c) % s for c, s in zip(coordinates, other)), other) if other else flat_other
+        noncanonical, selfconjugate = [], []
+        for plane in planes:
+            flat = flat_other * half + plane
+            noncanonical.append(flat[partner_other < flat_other])
+            selfconjugate.append(flat[partner_other == flat_other])
+        self._noncanonical = np.concatenate(noncanonical)
+        self._selfconjugate = np.concatenate(selfconjugate)
+        self._plane_of_last = np.zeros(half, dtype=bool)
+        self._plane_of_last[planes] = True
+
+    def _weights(self, support):
+        """(analysis scale a, synthesis scale b) of coefficient entries ``support``."""
+        if not self.real:
+            return None, None
+        size = self.size
+        in_plane = self._plane_of_last[support % self.coefficient_shape[-1]]
+        selfconjugate = np.isin(support, self._selfconjugate, assume_unique=False) if in_plane.any() else np.zeros(support.size, bool)
+        analysis = np.where(selfconjugate, 1.0 / math.sqrt(size), math.sqrt(2.0 / size))
+        # c2r counts an interior entry twice (its mirror is implicit) and a plane entry once.
+        synthesis = np.where(selfconjugate, math.sqrt(size), np.where(in_plane, math.sqrt(2.0 * size), math.sqrt(size / 2.0)))
+        return analysis, synthesis
+
+    def coefficient_counts(self, support):
+        """How many full-spectrum coefficients each entry of ``support`` stands for (1 or 2)."""
+        if not self.real:
+            return np.ones(np.size(support), dtype=np.int64)
+        in_plane = self._plane_of_last[np.asarray(support) % self.coefficient_shape[-1]]
+        selfconjugate = np.isin(support, self._selfconjugate) & in_plane
+        return np.where(selfconjugate, 1, 2)
+
+    # -- the operator on a support --------------------------------------------
+
+    def forward_on(self, support, values):
+        """``A`` applied to coefficients that are zero off ``support`` (flat coefficient indices)."""
+        spectrum = self._spectrum.reshape(-1)
+        _, synthesis = self._weights(support)
+        spectrum[support] = values if synthesis is None else values * synthesis
+        self.transforms += 1
+        if self.real:
+            # The transform may destroy its input; zeroing the whole buffer is cheaper than the copy it saves.
+            grid = fft.irfftn(self._spectrum, self.grid_shape[-1], axes=self._axes, out=self._grid_out,
+                              threads=self.threads, overwrite_input=True)
+            self._spectrum.fill(0)
+        else:
+            grid = fft.ifftn(self._spectrum, axes=self._axes, norm="ortho", out=self._grid_out, threads=self.threads)
+            spectrum[support] = 0
+        return grid.reshape(-1)[self.indices]
+
+    def transform_samples(self, samples):
+        """The unscaled spectrum of the sampled cells holding ``samples``.
+
+        Returns a buffer that the next call overwrites: copy it to keep it.
+        """
+        samples = np.asarray(samples)
+        if samples.shape != (self.output_size,):
+            raise ValueError(f"expected {self.output_size} samples, got shape {samples.shape}")
+        self._grid.reshape(-1)[self.indices] = samples
+        self.transforms += 1
+        if self.real:
+            return fft.rfftn(self._grid, axes=self._axes, out=self._spectrum_out, threads=self.threads)
+        return fft.fftn(self._grid, axes=self._axes, norm="ortho", out=self._spectrum_out, threads=self.threads)
+
+    def adjoint_on(self, support, samples, spectrum=None):
+        """``A^*`` restricted to ``support``; pass ``spectrum`` from :meth:`transform_samples` to reuse it."""
+        if spectrum is None:
+            spectrum = self.transform_samples(samples)
+        values = spectrum.reshape(-1)[support]
+        analysis, _ = self._weights(support)
+        return values if analysis is None else (values * analysis).astype(self.coefficient_dtype, copy=False)
+
+    def proxy_energy(self, spectrum):
+        """``|A^* r|^2`` on every coefficient entry, up to one common factor, from :meth:`transform_samples`."""
+        energy = np.square(spectrum.real)
+        energy += np.square(spectrum.imag)
+        if self.real:
+            flat = energy.reshape(-1)
+            flat[self._noncanonical] = 0.0
+            flat[self._selfconjugate] *= 0.5
+        return energy.reshape(-1)
+
+    # -- LinearOperator interface -----------------------------------------------
+
+    def forward(self, vector):
+        """``A u`` for a full coefficient vector (length ``input_size``)."""
+        vector = np.asarray(vector).reshape(-1)
+        if vector.size != self.input_size:
+            raise ValueError(f"expected {self.input_size} coefficients, got {vector.size}")
+        support = np.flatnonzero(vector)
+        if self.real:
+            support = np.setdiff1d(support, self._noncanonical)
+        return self.forward_on(support, vector[support])
+
+    def adjoint(self, samples):
+        """``A^* y`` as a full coefficient vector (zero on non-canonical entries)."""
+        spectrum = self.transform_samples(samples).reshape(-1)
+        if not self.real:
+            return spectrum.copy()
+        every = np.arange(self.input_size, dtype=np.int64)
+        result = self.adjoint_on(every, None, spectrum)
+        result[self._noncanonical] = 0
+        return result
+
+    # -- results -------------------------------------------------------------------
+
+    def to_sparse_fourier(self, support, values):
+        """The estimate in the SparseFourier convention (full spectrum, ``numpy.fft.fftn``).
+
+        Orthonormal coordinates ``u = a c`` (see :meth:`_weights`) give
+        ``c = u / a``; each canonical half-spectrum entry becomes the pair
+        ``c(k), c(-k) = conj(c(k))``, a self-conjugate entry one real ``c(k)``.
+        """
+        support = np.asarray(support, dtype=np.int64)
+        values = np.asarray(values, dtype=np.complex128)
+        if not self.real:
+            return SparseFourier(self.grid_shape, support, values * math.sqrt(self.size))
+        analysis, _ = self._weights(support)
+        coefficients = values / analysis
+        coordinates = np.unravel_index(support, self.coefficient_shape)
+        full = np.ravel_multi_index(coordinates, self.grid_shape)
+        mirrored = np.ravel_multi_index(tuple((-c) % s for c, s in zip(coordinates, self.grid_shape)), self.grid_shape)
+        pairs = mirrored != full
+        coefficients = np.where(pairs, coefficients, coefficients.real)
+        indices = np.concatenate([full, mirrored[pairs]])
+        return SparseFourier(self.grid_shape, indices, np.concatenate([coefficients, np.conj(coefficients[pairs])]),
+                             real=True, tolerance=1e-3)

@@ -1,0 +1,58 @@
+"""The result record every recovery algorithm returns."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..fourier.sparse import SparseFourier
+
+
+@dataclass(frozen=True)
+class RecoveryResult:
+    """What a recovery algorithm found, and what it cost.
+
+    Attributes
+    ----------
+    estimate : SparseFourier
+        The recovered coefficients (``estimate.to_signal()`` is the grid signal).
+    residual_history : tuple of float
+        Relative residual ``||y - A x|| / ||y||`` after each iteration.
+    iterations : int
+        Iterations run.
+    samples : int
+        Samples (measurements) the algorithm read.
+    time : dict
+        Seconds per phase (e.g. proxy, select, least_squares, prune, residual).
+    stop_reason : str
+        'converged', 'stagnated', 'max_iterations' or 'sparsity_reached'.
+    transforms : int
+        Number of full FFTs performed (the cost floor of matrix-free recovery).
+    """
+
+    estimate: SparseFourier
+    residual_history: tuple
+    iterations: int
+    samples: int
+    time: dict = field(default_factory=dict)
+    stop_reason: str = ""
+    transforms: int = 0
+
+    @property
+    def support(self):
+        """Flat spectrum indices of the estimate."""
+        return self.estimate.indices
+
+    @property
+    def total_time(self):
+        return float(sum(self.time.values()))
+
+    @property
+    def relative_residual(self):
+        return float(self.residual_history[-1]) if self.residual_history else float("nan")
+
+    def relative_error(self, truth):
+        """``||x_hat - x|| / ||x||`` against a reference grid signal."""
+        truth = np.asarray(truth)
+        return float(np.linalg.norm(self.estimate.to_signal() - truth) / np.linalg.norm(truth))

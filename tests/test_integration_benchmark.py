@@ -1,0 +1,147 @@
+"""The Table 4.1 benchmark machinery on tiny sizes: files, one CSV row per measurement, agreement.
+
+Timings themselves belong in ``benchmarks/``; this only checks that the
+experiment runs end to end and records what it claims.
+"""
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sparselt.experiments.integration_benchmark import (
+    IntegrationBenchmarkResult,
+    estimate_peak_bytes,
+    run_integration_benchmark,
+    sample_support,
+    thesis_signal,
+)
+from sparselt.fourier.integration import METHODS
+
+SIZES = (8, 12)
+
+
+@pytest.fixture(scope="module")
+def benchmark(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench-integrate")
+    result = run_integration_benchmark(out, sizes=SIZES, repeats=2, density=0.01, progress=False)
+    return out, result
+
+
+def test_writes_every_file(benchmark):
+    out, result = benchmark
+    assert isinstance(result, IntegrationBenchmarkResult)
+    for name in ("integration.csv", "integration.md", "figure_4_1_time.png", "figure_4_2_memory.png", "config.json"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+        assert result.files[name] == str(out / name)
+    assert (out / "figure_4_1_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not [path.name for path in out.iterdir() if path.name.startswith(".tmp-")]
+
+
+def test_csv_has_one_measured_row_per_method_and_size(benchmark):
+    out, result = benchmark
+    with open(out / "integration.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert sorted((row["method"], int(row["s"])) for row in rows) == sorted((m, s) for m in METHODS for s in SIZES)
+    for row in rows:
+        assert row["status"] == "measured", row
+        size = int(row["s"])
+        assert int(row["N"]) == size ** 4 and int(row["P"]) == size ** 2
+        assert int(row["K"]) == int(size ** 4 * 0.01)
+        seconds, peak = float(row["seconds"]), int(row["peak_bytes"])
+        assert math.isfinite(seconds) and seconds >= 0
+        assert peak >= 0 and int(row["baseline_bytes"]) > 0
+        assert 1 <= len(row["run_seconds"].split(";")) <= 2
+    assert len(result.measurements) == len(METHODS) * len(SIZES)
+
+
+def test_every_method_agrees_with_convolution(benchmark):
+    _, result = benchmark
+    assert result.agreement_passed is True
+    assert all(item.check_error is not None and item.check_error < 1e-9 for item in result.measurements)
+
+
+def test_summary_and_config_are_recorded(benchmark):
+    out, result = benchmark
+    record = json.loads((out / "config.json").read_text())
+    assert record["config"]["sizes"] == list(SIZES) and record["config"]["seed"] == 0
+    assert "versions" in record["environment"]
+    assert record["results"]["agreement_passed"] is True
+    assert result.ratio_size == max(SIZES) and result.speed_ratio > 0
+    assert set(result.time_exponents) == set(METHODS)
+    text = (out / "integration.md").read_text()
+    assert "Table 4.1" in text and all(f"`{method}`" in text for method in METHODS)
+
+
+def test_sample_support_is_distinct_and_in_range():
+    rng = np.random.default_rng(1)
+    support = sample_support(1000, 900, rng)
+    assert support.size == 900 and np.unique(support).size == 900
+    assert support.min() >= 0 and support.max() < 1000
+    with pytest.raises(ValueError, match="count"):
+        sample_support(10, 11, rng)
+
+
+def test_sample_support_is_uniform():
+    """Chi-square: each of 20 indices is drawn into a 5-subset with probability 1/4."""
+    rng = np.random.default_rng(2)
+    trials = 4000
+    counts = np.bincount(np.concatenate([sample_support(20, 5, rng) for _ in range(trials)]), minlength=20)
+    expected = trials * 5 / 20
+    statistic = float(np.sum((counts - expected) ** 2 / expected))
+    assert statistic < 43.8  # chi-square, 19 degrees of freedom, p = 0.001
+
+
+def test_thesis_signal_follows_the_pseudo_code():
+    representation = thesis_signal(12, seed=3)
+    assert representation.shape == (12,) * 4 and representation.sparsity == int(12 ** 4 * 1e-4)
+    values = thesis_signal(12, density=0.01, seed=3).values
+    assert np.all(values.imag == 0) and values.real.min() >= 0 and values.real.max() < 1
+    assert np.array_equal(thesis_signal(12, seed=3).indices, representation.indices)
+
+
+def test_estimate_is_order_n_for_dense_methods_only():
+    assert estimate_peak_bytes("sum", 128, 26843) == 2 * 128 ** 4 * 16
+    assert estimate_peak_bytes("convolution", 128, 26843) < 2 * 2**20
+
+
+@pytest.mark.parametrize("arguments, message", [
+    ({"sizes": ()}, "sizes"),
+    ({"sizes": (1,)}, "sizes"),
+    ({"sizes": (8, 8)}, "repeat"),
+    ({"methods": ("fast",)}, "unknown"),
+    ({"methods": ("sum", "sum")}, "repeat"),
+    ({"seed": -1}, "seed"),
+    ({"repeats": 0}, "repeats"),
+    ({"density": 0.0}, "density"),
+])
+def test_rejects_bad_arguments(tmp_path, arguments, message):
+    with pytest.raises(ValueError, match=message):
+        run_integration_benchmark(tmp_path / "out", progress=False, **arguments)
+
+
+def test_refuses_a_non_empty_folder_without_overwrite(tmp_path):
+    (tmp_path / "keep.txt").write_text("x")
+    with pytest.raises(ValueError, match="overwrite"):
+        run_integration_benchmark(tmp_path, sizes=(8,), methods=("convolution",), progress=False)
+
+
+def test_skips_what_does_not_fit_and_records_failures(tmp_path, monkeypatch):
+    from sparselt.experiments import integration_benchmark
+
+    monkeypatch.setattr(integration_benchmark, "_available_bytes", lambda: 300 * 2**20)
+    result = run_integration_benchmark(tmp_path / "skip", sizes=(8, 40), methods=("convolution", "sum"), repeats=1,
+                                       density=0.01, progress=False)
+    skipped = result.measurement("sum", 40)  # 2 N complex128 = 105 MB + interpreter > 0.9 x 300 MiB
+    assert skipped.status == "skipped" and "available" in skipped.reason and skipped.seconds is None
+    assert result.measurement("sum", 8).measured and result.ratio_size == 8
+    with open(tmp_path / "skip" / "integration.csv", newline="") as handle:
+        assert {row["status"] for row in csv.DictReader(handle)} == {"measured", "skipped"}
+
+    monkeypatch.setattr(integration_benchmark, "_CHILD_MODULE", "sparselt.no_such_module")
+    failed = run_integration_benchmark(tmp_path / "fail", sizes=(8,), methods=("convolution",), progress=False)
+    item = failed.measurement("convolution", 8)
+    assert item.status == "failed" and "No module named" in item.reason
+    assert failed.agreement_passed is None and failed.ratio_size is None

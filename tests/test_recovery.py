@@ -1,0 +1,179 @@
+"""Partial-Fourier operator (adjoint, isometry) and CoSaMP / OMP recovery."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sparselt.fourier.sparse import SparseFourier
+from sparselt.operators import PartialFourier, dot_test
+from sparselt.recovery.cosamp import cosamp, omp
+
+SHAPES = [(64,), (63,), (12, 10), (8, 6, 5), (6, 5, 4, 4)]
+
+
+def _coordinate_vector(operator, rng):
+    """A random vector of the operator's coordinate space (non-canonical entries zero, self-conjugate real)."""
+    vector = (rng.standard_normal(operator.input_size) + 1j * rng.standard_normal(operator.input_size)).astype(operator.input_dtype)
+    if operator.real:
+        vector[operator._noncanonical] = 0
+        vector[operator._selfconjugate] = vector[operator._selfconjugate].real
+    return vector
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("real", [True, False])
+@pytest.mark.parametrize("dtype, tolerance", [(np.float32, 1e-5), (np.float64, 1e-12)])
+def test_adjoint(shape, real, dtype, tolerance):
+    rng = np.random.default_rng(len(shape))
+    size = math.prod(shape)
+    operator = PartialFourier(shape, rng.choice(size, size // 3, replace=False), real=real, dtype=dtype)
+    for seed in range(3):
+        assert dot_test(operator, seed=seed, input_vector=_coordinate_vector(operator, rng)) < tolerance
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("real", [True, False])
+def test_fully_sampled_operator_is_an_isometry_onto_the_signal(shape, real):
+    """Every cell sampled: ||A u|| = ||u||, and A u equals the SparseFourier signal of u."""
+    rng = np.random.default_rng(7)
+    operator = PartialFourier(shape, np.arange(math.prod(shape)), real=real, dtype=np.float64)
+    vector = _coordinate_vector(operator, rng)
+    samples = operator.forward(vector)
+    assert np.linalg.norm(samples) == pytest.approx(np.linalg.norm(vector), rel=1e-12)
+    support = np.flatnonzero(vector)
+    estimate = operator.to_sparse_fourier(support, vector[support])
+    assert estimate.real == real
+    assert np.allclose(estimate.to_signal().reshape(-1), samples)
+
+
+def _sparse_signal(shape, count, rng, real=True):
+    size = math.prod(shape)
+    if real:
+        indices = rng.choice(size, count // 2, replace=False)
+        values = rng.standard_normal(indices.size) + 1j * rng.standard_normal(indices.size)
+        representation = SparseFourier(shape, indices, values).hermitian_closure()
+    else:
+        indices = rng.choice(size, count, replace=False)
+        representation = SparseFourier(shape, indices, rng.standard_normal(count) + 1j * rng.standard_normal(count))
+    return representation.to_signal(), representation.sparsity
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("shape", [(512,), (40, 30), (16, 12, 10), (12, 10, 8, 6)])
+@pytest.mark.parametrize("real", [True, False])
+def test_cosamp_recovers_exactly_sparse_signals(seed, shape, real):
+    rng = np.random.default_rng(seed)
+    size = math.prod(shape)
+    signal, count = _sparse_signal(shape, max(4, size // 100), rng, real)
+    indices = rng.choice(size, size // 4, replace=False)
+    operator = PartialFourier(shape, indices, real=real, dtype=np.float64)
+    result = cosamp(operator, signal.reshape(-1)[indices], count, tolerance=1e-9)
+    assert result.relative_error(signal) <= 1e-5
+    assert result.stop_reason == "converged"
+    assert result.samples == indices.size and result.iterations <= 30
+    assert set(result.time) == {"proxy", "select", "least_squares", "prune", "residual"}
+    assert result.estimate.sparsity <= count + 1
+
+
+def test_cosamp_in_single_precision():
+    rng = np.random.default_rng(4)
+    shape = (32, 24, 8, 8)
+    signal, count = _sparse_signal(shape, 800, rng)
+    indices = np.sort(rng.choice(signal.size, signal.size // 10, replace=False))
+    operator = PartialFourier(shape, indices, dtype=np.float32)
+    result = cosamp(operator, signal.reshape(-1)[indices].astype(np.float32), count)
+    assert result.relative_error(signal) <= 1e-5
+
+
+@pytest.mark.parametrize("noise", [0.01, 0.05])
+def test_cosamp_error_stays_within_a_small_multiple_of_the_noise(noise):
+    rng = np.random.default_rng(11)
+    shape = (40, 30, 8)
+    signal, count = _sparse_signal(shape, 96, rng)
+    indices = rng.choice(signal.size, signal.size // 5, replace=False)
+    clean = signal.reshape(-1)[indices]
+    perturbation = rng.standard_normal(clean.size)
+    perturbation *= noise * np.linalg.norm(clean) / np.linalg.norm(perturbation)
+    operator = PartialFourier(shape, indices, dtype=np.float64)
+    result = cosamp(operator, clean + perturbation, count)
+    assert result.relative_error(signal) <= 4 * noise
+    assert result.stop_reason in ("stagnated", "max_iterations", "converged")
+
+
+def test_cosamp_on_a_compressible_signal_is_close_to_the_best_k_term_approximation():
+    rng = np.random.default_rng(5)
+    shape = (48, 40, 6)
+    size = math.prod(shape)
+    indices = rng.choice(size, 600, replace=False)
+    values = (rng.standard_normal(600) + 1j * rng.standard_normal(600)) * np.arange(1, 601) ** -1.2
+    representation = SparseFourier(shape, indices, values).hermitian_closure()
+    signal = representation.to_signal()
+    count = 200
+    best = representation.largest(count).to_signal()
+    best_error = np.linalg.norm(best - signal) / np.linalg.norm(signal)
+    sampled = rng.choice(size, size // 4, replace=False)
+    result = cosamp(PartialFourier(shape, sampled, dtype=np.float64), signal.reshape(-1)[sampled], count)
+    assert result.relative_error(signal) <= 3 * best_error + 1e-6
+    assert result.iterations <= 30
+
+
+@pytest.mark.parametrize("real", [True, False])
+def test_omp_recovers_small_problems_exactly(real):
+    rng = np.random.default_rng(3)
+    shape = (24, 20)
+    signal, count = _sparse_signal(shape, 12, rng, real)
+    indices = rng.choice(signal.size, 160, replace=False)
+    result = omp(PartialFourier(shape, indices, real=real, dtype=np.float64), signal.reshape(-1)[indices], count)
+    assert result.relative_error(signal) <= 1e-8
+    assert result.estimate.sparsity == count
+
+
+def test_cosamp_residual_history_is_recorded():
+    rng = np.random.default_rng(8)
+    signal, count = _sparse_signal((30, 20, 8), 60, rng)
+    indices = rng.choice(signal.size, signal.size // 4, replace=False)
+    result = cosamp(PartialFourier((30, 20, 8), indices, dtype=np.float64), signal.reshape(-1)[indices], count)
+    assert len(result.residual_history) == result.iterations
+    assert result.residual_history[-1] < result.residual_history[0]
+    assert result.transforms >= 2 * result.iterations
+
+
+@pytest.fixture
+def small_problem():
+    rng = np.random.default_rng(0)
+    indices = rng.choice(200, 50, replace=False)
+    return PartialFourier((20, 10), indices, dtype=np.float64), rng.standard_normal(50)
+
+
+@pytest.mark.parametrize("count, message", [(0, "0 < K"), (-3, "0 < K"), (50, "0 < K"), (2.5, "integer")])
+def test_bad_sparsity_is_refused(small_problem, count, message):
+    operator, samples = small_problem
+    with pytest.raises(ValueError, match=message):
+        cosamp(operator, samples, count)
+
+
+def test_wrong_length_and_nan_are_refused(small_problem):
+    operator, samples = small_problem
+    with pytest.raises(ValueError, match="50 samples"):
+        cosamp(operator, samples[:-1], 5)
+    bad = samples.copy()
+    bad[3] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        omp(operator, bad, 5)
+    with pytest.raises(ValueError, match="complex"):
+        cosamp(operator, samples + 1j, 5)
+
+
+@pytest.mark.parametrize("indices, message", [([], "non-empty"), ([0, 200], "out of range"), ([-1, 3], "out of range"),
+                                              ([4, 7, 4], "repeated"), ([0.5, 2.0], "integers")])
+def test_bad_sample_indices_are_refused(indices, message):
+    with pytest.raises(ValueError, match=message):
+        PartialFourier((20, 10), np.array(indices))
+
+
+def test_bad_shape_and_dtype_are_refused():
+    with pytest.raises(ValueError, match="positive"):
+        PartialFourier((20, 0), [1])
+    with pytest.raises(ValueError, match="float32 or float64"):
+        PartialFourier((20, 10), [1], dtype=np.int32)
