@@ -7,24 +7,33 @@ import os
 import sys
 
 
-def _shape(text):
-    try:
-        values = tuple(int(part) for part in text.replace("x", ",").split(",") if part.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"shape must be comma-separated integers such as 64,64,8,8, got {text!r}") from None
-    if not values:
-        raise argparse.ArgumentTypeError("shape is empty")
-    return values
+def _number_list(convert, example):
+    """argparse type for comma-separated numbers (``convert`` each), e.g. ``64,64,8,8``."""
+
+    def parse(text):
+        try:
+            values = tuple(convert(part) for part in text.replace("x", ",").split(",") if part.strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected comma-separated numbers such as {example}, got {text!r}") from None
+        if not values:
+            raise argparse.ArgumentTypeError(f"expected at least one number, such as {example}")
+        return values
+
+    return parse
 
 
-def _numbers(text):
-    try:
-        values = tuple(float(part) for part in text.split(",") if part.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers such as 1,0.5,0.25, got {text!r}") from None
-    if not values:
-        raise argparse.ArgumentTypeError("expected at least one number")
-    return values
+_shape = _number_list(int, "64,64,8,8")
+_numbers = _number_list(float, "1,0.5,0.25")
+
+
+def _methods(text):
+    from .fourier.integration import METHODS
+
+    methods = tuple(part.strip() for part in text.split(",") if part.strip())
+    unknown = [method for method in methods if method not in METHODS]
+    if unknown or not methods:
+        raise argparse.ArgumentTypeError(f"unknown integration method(s) {unknown or text!r}; choose from {','.join(METHODS)}")
+    return methods
 
 
 def _add_camera_options(parser):
@@ -99,6 +108,10 @@ def build_parser():
         "integrate", help="integration methods (Figures 4.1, 4.2, Table 4.1)",
         description="Time and peak memory of the four Fourier integration methods on random sparse 4-D signals (thesis 4.3).")
     bench_integrate.add_argument("--sizes", type=_shape, default=(32, 48, 64, 96, 128), help="s values, N = s^4 (default: 32,48,64,96,128)")
+    bench_integrate.add_argument("--methods", type=_methods, default=("sum", "time", "time-fft", "convolution"),
+                                 help="methods, comma separated (default: all four)")
+    bench_integrate.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    bench_integrate.add_argument("--repeats", type=int, default=5, help="timed calls per measurement, best kept (default: %(default)s)")
     bench_integrate.add_argument("--out", required=True, help="output folder")
     bench_integrate.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
     bench_integrate.set_defaults(handler=_bench_integrate)
@@ -177,7 +190,8 @@ def _bench_integrate(arguments):
     from .provenance import check_output_folder
 
     check_output_folder(arguments.out, overwrite=arguments.overwrite)
-    run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes), overwrite=True)
+    run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes), methods=arguments.methods, seed=arguments.seed,
+                              repeats=arguments.repeats, overwrite=True)
     return 0
 
 

@@ -206,15 +206,7 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
             stop_reason = "stagnated"
             break
     _, support, values = best
-    return RecoveryResult(
-        estimate=operator.to_sparse_fourier(support, values),
-        residual_history=tuple(history),
-        iterations=iteration,
-        samples=operator.output_size,
-        time=clock.time,
-        stop_reason=stop_reason,
-        transforms=operator.transforms - transforms_before,
-    )
+    return _result(operator, support, values, history, iteration, clock, stop_reason, transforms_before)
 
 
 def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50):
@@ -263,10 +255,14 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50):
             break
         if int(operator.coefficient_counts(support).sum()) >= sparsity or support.size >= operator.input_size:
             break
+    return _result(operator, support, values, history, iteration, clock, stop_reason, transforms_before)
+
+
+def _result(operator, support, values, history, iterations, clock, stop_reason, transforms_before):
     return RecoveryResult(
         estimate=operator.to_sparse_fourier(support, values),
         residual_history=tuple(history),
-        iterations=iteration,
+        iterations=iterations,
         samples=operator.output_size,
         time=clock.time,
         stop_reason=stop_reason,
