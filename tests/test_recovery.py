@@ -177,3 +177,19 @@ def test_bad_shape_and_dtype_are_refused():
         PartialFourier((20, 0), [1])
     with pytest.raises(ValueError, match="float32 or float64"):
         PartialFourier((20, 10), [1], dtype=np.int32)
+
+
+def test_repeated_samples_become_cell_means_and_recover():
+    from sparselt.operators import mean_per_cell
+
+    rng = np.random.default_rng(12)
+    shape = (30, 20, 6)
+    signal, count = _sparse_signal(shape, 40, rng)
+    cells = rng.integers(0, signal.size, size=signal.size // 2)  # with repeats
+    noise = 0.01 * signal.std() * rng.standard_normal(cells.size)
+    unique, means, counts = mean_per_cell(cells, signal.reshape(-1)[cells] + noise)
+    assert counts.sum() == cells.size and np.all(np.diff(unique) > 0)
+    first = unique[np.argmax(counts)]
+    assert means[np.argmax(counts)] == pytest.approx(np.mean(signal.reshape(-1)[first] + noise[cells == first]))
+    result = cosamp(PartialFourier(shape, unique, dtype=np.float64), means, count)
+    assert result.relative_error(signal) < 0.05

@@ -41,6 +41,34 @@ from .base import LinearOperator
 DTYPES = {np.dtype(np.float32): np.dtype(np.complex64), np.dtype(np.float64): np.dtype(np.complex128)}
 
 
+def mean_per_cell(cells, values):
+    """Collapse repeated measurements: each distinct cell once, with the mean of its samples.
+
+    Parameters
+    ----------
+    cells : array_like of int, shape (M,)
+        Flat cell index of each sample (repeats allowed).
+    values : array_like, shape (M,)
+        Sample values.
+
+    Returns
+    -------
+    unique_cells : ndarray of int64, sorted
+    means : ndarray
+        Mean of the values of each cell (the operator's ``y``).
+    counts : ndarray of int64
+        Samples per cell.
+    """
+    cells = np.asarray(cells, dtype=np.int64)
+    values = np.asarray(values)
+    if cells.shape != values.shape[:1] or cells.ndim != 1:
+        raise ValueError(f"cells and values must have one entry per sample, got shapes {cells.shape} and {values.shape}")
+    unique_cells, inverse, counts = np.unique(cells, return_inverse=True, return_counts=True)
+    sums = np.zeros(unique_cells.size, dtype=np.result_type(values.dtype, np.float64))
+    np.add.at(sums, inverse, values)
+    return unique_cells, (sums / counts).astype(values.dtype if np.issubdtype(values.dtype, np.inexact) else np.float64), counts
+
+
 class PartialFourier(LinearOperator):
     """Samples at grid cells ``indices`` of the signal with Fourier coordinates ``u``.
 
