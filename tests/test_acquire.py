@@ -179,3 +179,10 @@ def test_signal_too_large_for_memory_needs_a_path(cornell):
 def test_too_many_cells_are_refused(cornell):
     with pytest.raises(ValueError, match="2\\*\\*32"):
         acquire_signal(_config(shape=(1000, 1000, 4, 4, 4, 4, 4, 4, 4, 4)), progress=False, scene_spec=cornell)
+
+
+def test_refused_configuration_creates_no_folder(tmp_path, cornell):
+    target = tmp_path / "never"
+    with pytest.raises(ValueError, match="--aperture"):
+        acquire_signal(_config(kind="dof", shape=(8, 8, 4, 4)), target, progress=False, scene_spec=cornell)
+    assert not target.exists()

@@ -196,6 +196,10 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     spec = spec.with_lens(config.aperture, config.focus_distance)
     if chunk_cells is not None:
         _check_integer("chunk_cells", chunk_cells, 1)
+    # Cheap checks first; the layout of a scene file needs its camera, hence the renderer (checked below).
+    if spec.camera is not None:
+        layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens)
+        _check_shape_matches(config, layout)
     nbytes = signal_bytes(config.shape)
     if path is None:
         available = _available_memory()
@@ -212,10 +216,6 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
             if nbytes > free:
                 raise ValueError(f"the signal takes {nbytes / 1e9:.1f} GB but only {free / 1e9:.1f} GB of disk is free at {path!r}")
 
-    # Cheap checks first; the layout of a scene file needs its camera, hence the renderer.
-    if spec.camera is not None:
-        layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens)
-        _check_shape_matches(config, layout)
     scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
     layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens)
     _check_shape_matches(config, layout)
