@@ -71,6 +71,7 @@ import numpy as np
 
 from ..fourier.integration import METHODS, integrate
 from ..fourier.sparse import SparseFourier
+from ..memory import reset_peak, status_bytes
 from ..provenance import atomic_write_bytes, check_output_folder, environment_record, write_json
 
 DEFAULT_SIZES = (32, 48, 64, 96, 128)
@@ -285,24 +286,6 @@ def estimate_peak_bytes(method, size, coefficients, *, dimensions=DIMENSIONS):
 # -- the child process -------------------------------------------------------
 
 
-def _process_status_bytes(field_name):
-    with open("/proc/self/status", encoding="ascii") as handle:
-        for line in handle:
-            if line.startswith(field_name + ":"):
-                return int(line.split()[1]) * 1024
-    raise OSError(f"/proc/self/status has no {field_name} line")
-
-
-def _reset_peak():
-    """Reset VmHWM to the current VmRSS (Linux >= 4.0); ``False`` where not allowed."""
-    try:
-        with open("/proc/self/clear_refs", "w", encoding="ascii") as handle:
-            handle.write("5")
-    except OSError:
-        return False
-    return True
-
-
 def _measure_here(task):
     """Run one measurement in this process (the child); returns a JSON-able dict."""
     size, method, seed = int(task["size"]), task["method"], int(task["seed"])
@@ -310,13 +293,13 @@ def _measure_here(task):
     integrate(thesis_signal(4, density=0.05, seed=seed), KEEP_AXES, method)  # warm-up
     representation = thesis_signal(size, density=density, seed=seed)
     gc.collect()
-    reset = _reset_peak()
-    baseline = _process_status_bytes("VmRSS")
-    preexisting = _process_status_bytes("VmHWM") - baseline
+    reset = reset_peak()
+    baseline = status_bytes("VmRSS")
+    preexisting = status_bytes("VmHWM") - baseline
     start = time.perf_counter()
     result = integrate(representation, KEEP_AXES, method)
     seconds = [time.perf_counter() - start]
-    peak = _process_status_bytes("VmHWM") - baseline
+    peak = status_bytes("VmHWM") - baseline
     while len(seconds) < repeats and sum(seconds) < REPEAT_SECONDS:
         start = time.perf_counter()
         integrate(representation, KEEP_AXES, method)

@@ -132,6 +132,8 @@ class PartialFourier(LinearOperator):
         self.output_dtype = self.sample_dtype
         self._axes = tuple(range(len(self.grid_shape)))
         self.transforms = 0  # full FFTs performed, for cost accounting
+        self._weights_support = None
+        self._weights_cache = (None, None)
         self._grid = np.zeros(self.grid_shape, dtype=self.sample_dtype)  # zero except at sampled cells
         self._spectrum = np.zeros(self.coefficient_shape, dtype=self.coefficient_dtype)  # zero except on a support
         self._grid_out = np.empty(self.grid_shape, dtype=self.sample_dtype)  # synthesis output
@@ -162,16 +164,26 @@ class PartialFourier(LinearOperator):
         self._plane_of_last[planes] = True
 
     def _weights(self, support):
-        """(analysis scale a, synthesis scale b) of coefficient entries ``support``."""
+        """(analysis scale a, synthesis scale b) of coefficient entries ``support``.
+
+        Cached for the last support array seen: CoSaMP's conjugate-gradient
+        steps reuse one support many times.
+        """
         if not self.real:
             return None, None
+        if support is self._weights_support:
+            return self._weights_cache
         size = self.size
         in_plane = self._plane_of_last[support % self.coefficient_shape[-1]]
-        selfconjugate = np.isin(support, self._selfconjugate, assume_unique=False) if in_plane.any() else np.zeros(support.size, bool)
-        analysis = np.where(selfconjugate, 1.0 / math.sqrt(size), math.sqrt(2.0 / size))
+        selfconjugate = np.zeros(support.size, dtype=bool)
+        if in_plane.any():
+            selfconjugate[in_plane] = np.isin(support[in_plane], self._selfconjugate)
+        analysis = np.where(selfconjugate, 1.0 / math.sqrt(size), math.sqrt(2.0 / size)).astype(self.sample_dtype)
         # c2r counts an interior entry twice (its mirror is implicit) and a plane entry once.
         synthesis = np.where(selfconjugate, math.sqrt(size), np.where(in_plane, math.sqrt(2.0 * size), math.sqrt(size / 2.0)))
-        return analysis, synthesis
+        self._weights_support = support
+        self._weights_cache = (analysis, synthesis.astype(self.sample_dtype))
+        return self._weights_cache
 
     def coefficient_counts(self, support):
         """How many full-spectrum coefficients each entry of ``support`` stands for (1 or 2)."""
@@ -219,7 +231,7 @@ class PartialFourier(LinearOperator):
             spectrum = self.transform_samples(samples)
         values = spectrum.reshape(-1)[support]
         analysis, _ = self._weights(support)
-        return values if analysis is None else (values * analysis).astype(self.coefficient_dtype, copy=False)
+        return values if analysis is None else values * analysis
 
     def proxy_energy(self, spectrum):
         """``|A^* r|^2`` on every coefficient entry, up to one common factor, from :meth:`transform_samples`."""

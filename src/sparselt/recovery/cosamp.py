@@ -12,7 +12,8 @@ CoSaMP iteration (Needell & Tropp 2009):
    support;
 3. least squares on the merged support by a few conjugate-gradient steps,
    warm-started from the current estimate (its first gradient *is* the
-   proxy on the support, so it costs nothing); each step is two FFTs;
+   proxy on the support, so it costs nothing); each step is two FFTs
+   (four steps by default: measured fastest overall on 250x250x16x16);
 4. prune to the ``K`` largest;
 5. residual ``y - A u`` by one inverse FFT.
 
@@ -123,7 +124,7 @@ def _conjugate_gradient(operator, support, values, samples, residual, gradient, 
     return values, residual
 
 
-def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugate_gradient_steps=3,
+def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugate_gradient_steps=4,
            patience=2, stagnation=1e-3):
     """Compressive Sampling Matching Pursuit (Needell & Tropp 2009; thesis Algorithm 2).
 
