@@ -17,7 +17,7 @@ from .analysis.sparsity import gini_index
 from .fourier.integration import integrate
 from .fourier.sparse import SparseFourier
 from .operators import PartialFourier
-from .recovery import RecoveryResult, cosamp, omp
+from .recovery import RecoveryResult, cosamp, omp, sft, sft_lattice
 from .rendering.acquire import AcquisitionConfig, NonFiniteSampleError, acquire_signal
 from .rendering.layout import KINDS, path_layout
 from .rendering.scenes import get_scene, scene_names
@@ -51,4 +51,6 @@ __all__ = [
     "load_signal",
     "path_layout",
     "scene_names",
+    "sft",
+    "sft_lattice",
 ]

@@ -2,5 +2,6 @@
 
 from .cosamp import cosamp, omp
 from .result import RecoveryResult
+from .sft import SparseFourierTransformResult, sft, sft_lattice
 
-__all__ = ["RecoveryResult", "cosamp", "omp"]
+__all__ = ["RecoveryResult", "SparseFourierTransformResult", "cosamp", "omp", "sft", "sft_lattice"]

@@ -1,0 +1,1152 @@
+"""Sparse Fourier Transform (thesis 2.3, Algorithms 3-7) and rank-1 lattice reduction (thesis 6.1.1).
+
+:func:`sft` recovers the ``K`` largest coefficients of the DFT of a length-``n``
+signal that it can only *sample*: ``oracle(indices)`` returns ``x[indices]``
+(one rendered path per sample, so samples are the cost that matters). It reads
+a few thousand samples where a full FFT needs all ``n``. :func:`sft_lattice`
+does the same for a function on ``[0, 1)^D`` whose frequencies lie in a box,
+through the rank-1 lattice of eq. 6.1-6.2, without ever forming the grid.
+
+Structure (the thesis's Algorithms 3-7, Hassanieh et al. 2012, Indyk, Kapralov
+and Price 2014):
+
+1. **Permutation.** Each hash draws ``sigma`` coprime with ``n`` and an offset
+   ``tau`` and reads ``y[j] = x[(sigma j + tau) mod n]``, which moves frequency
+   ``f`` to ``p = sigma f mod n`` (with the phase ``exp(2 pi i f tau / n)``).
+2. **Flat window** (2.3.4). ``y`` is multiplied by a filter ``G`` of
+   ``w = width * B`` taps: a base window times a Dirichlet kernel one bin
+   (``n / B`` frequencies) wide, so that the filter's spectrum is flat over a
+   bin and falls to the ``leakage`` level within a few bins. The base window
+   is Dolph-Chebyshev by default (optimal main lobe for its side-lobe level:
+   fewest samples in ``benchmarks/sft.py``); Gaussian and the thesis's
+   B-spline are options.
+3. **HashToBins** (Algorithm 5). The windowed samples are aliased to ``B``
+   terms and transformed by a ``B``-point FFT; bin ``h`` then holds
+   ``sum_f X[f] exp(2 pi i (f tau + p s) / n) T(h n / B - p)`` where ``s`` is
+   a time shift of the window and ``T`` the filter's exact frequency
+   response, evaluated without any length-``n`` transform (a chirp-z table
+   or a Taylor expansion from small FFTs, :class:`_Response`).
+4. **Location** (Algorithm 6, with decreasing phase ambiguity instead of a
+   search). The same hash is read at shifts ``0, s_1, s_1 r, s_1 r^2, ...``:
+   the phase of bin ``h`` at shift ``s`` against shift 0 is
+   ``2 pi p s / n mod 2 pi``. The bin gives ``p`` to ``+- n / B``; each shift
+   refines it ``r`` times until it is an integer. A bin is accepted when that
+   one frequency explains all its shifts (a singleton test).
+5. **Iterative subtraction** (Algorithms 3-4). What is found is subtracted
+   from every later hash *in the bin domain*, exactly, through ``T``; the
+   next hash needs only ``B = alpha K_remaining`` bins.
+6. **Magnitude** (Algorithm 7). Every bin read so far is a linear
+   measurement of the found coefficients; after each hash the values are
+   polished by robust least squares over all of them (bins holding
+   coefficients not yet found are dropped as outliers). It costs no samples
+   and makes exactly sparse recovery exact. Optional extra magnitude hashes
+   give the median over hashes of each coefficient's bin estimate, which
+   then picks the inlier bins.
+
+Sample reuse. Samples are cached, so every distinct index is read (and
+counted) once. The shifted windows of one hash overlap: shifts below the
+window length cost only ``s`` new samples. Magnitude estimation reuses every
+sample of support detection (``magnitude_samples`` is 0 by default).
+
+Sizes. ``B`` must divide ``n``, so ``n`` should have divisors near
+``alpha K``: powers of two and smooth sizes (products of small primes, like
+lattice sizes) are ideal. When no suitable ``B`` exists, or the sparse
+transform would read at least ``dense_fraction`` of the signal, it reads all
+``n`` samples and takes one FFT (``stop_reason == 'dense'``); the sample count
+never exceeds ``n``.
+
+References
+----------
+Thesis sections 2.3 (Algorithms 3-7) and 6.1.1 (eq. 6.1-6.2).
+H. Hassanieh, P. Indyk, D. Katabi, E. Price, "Simple and practical algorithm
+for sparse Fourier transform", SODA 2012; "Nearly optimal sparse Fourier
+transform", STOC 2012.
+P. Indyk, M. Kapralov, E. Price, "(Nearly) sample-optimal sparse Fourier
+transform", SODA 2014.
+S. Pawar, K. Ramchandran, "FFAST: an algorithm for computing an exactly
+k-sparse DFT in O(k log k) time", IEEE Trans. Inf. Theory 2018 (shift-based
+location and sample counts).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse
+
+from ..fourier import fft
+from ..fourier.sparse import SparseFourier
+from .result import RecoveryResult
+
+WINDOWS = ("chebyshev", "gaussian", "bspline")
+
+#: A bin is occupied when its energy exceeds this many times the noise level per bin.
+OCCUPANCY_FACTOR = 12.0
+#: Largest fraction of a bin's energy that one frequency may leave unexplained (singleton test) ...
+SINGLETON_RESIDUAL = 0.05
+#: ... plus this many noise levels over the bin's energy (the worst of several noisy shifts).
+SINGLETON_NOISE = 8.0
+#: With noise, later hashes keep enough bins for this signal-to-noise ratio per bin (``B >= K 30 / snr``).
+BIN_SNR = 30.0
+#: Smallest filter response at which a bin may report a frequency.
+MINIMUM_RESPONSE = 0.25
+#: Phase error per bin the location design tolerates from leakage alone (radians).
+LEAKAGE_PHASE_ERROR = 0.05
+#: Relative level below which differences are round-off (exactly sparse signals).
+RELATIVE_FLOOR = 1e-11
+#: Quantile of bin energies taken as the noise level (most bins hold no coefficient).
+NOISE_QUANTILE = 0.25
+#: Least squares drops bins whose residual exceeds this many times the median residual of their hash.
+OUTLIER_FACTOR = 10.0
+#: Relative residual at which the least-squares corrections stop (each round refines the last).
+CG_TOLERANCE = 1e-10
+#: Least-squares rounds after each detection hash (the final polish runs three).
+DETECTION_ROUNDS = 2
+#: Fewest bins a hash may have (the noise level comes from the lower quartile of its bins).
+MINIMUM_BINS = 4
+#: Later hashes keep at least this fraction of the first hash's bins (found values stay apart).
+BINS_FLOOR = 0.25
+
+
+# ---------------------------------------------------------------------------
+# result record
+
+
+@dataclass(frozen=True)
+class SparseFourierTransformResult(RecoveryResult):
+    """What :func:`sft` found and what it cost.
+
+    Attributes
+    ----------
+    estimate : SparseFourier
+        The ``K`` coefficients found, ``numpy.fft.fftn`` convention.
+    residual_history : tuple of float
+        Per detection hash: energy left in its bins after subtracting what
+        was already found, over the energy of the bins.
+    iterations : int
+        Detection hashes (rounds of Algorithm 6).
+    samples : int
+        Distinct samples read (``support_samples + magnitude_samples``).
+    time : dict
+        Seconds per phase: ``setup`` (filters), ``support`` and ``magnitude``
+        (computation) and ``oracle`` (inside the oracle). They add up to the
+        total.
+    stop_reason : str
+        ``'converged'`` (a hash found nothing left), ``'stagnated'`` (K found,
+        nothing new for two hashes), ``'max_iterations'`` or ``'dense'``.
+    transforms : int
+        Full length-``n`` FFTs (1 in the dense fallback, else 0).
+    support_samples, magnitude_samples : int
+        Samples spent on support detection and on magnitude estimation
+        (thesis Table 6.1's columns).
+    bins : tuple of int
+        ``B`` of every hash, detection then magnitude.
+    parameters : dict
+        The resolved parameters (alpha, width, window, leakage, snr, seed, ...).
+    """
+
+    support_samples: int = 0
+    magnitude_samples: int = 0
+    bins: tuple = ()
+    parameters: dict = field(default_factory=dict)
+
+    @property
+    def samples_per_coefficient(self):
+        """Samples read per coefficient returned."""
+        return self.samples / max(self.estimate.sparsity, 1)
+
+
+# ---------------------------------------------------------------------------
+# validation
+
+
+def _check_size(n):
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+        raise ValueError(f"signal size n must be a positive integer, got {n!r}")
+    n = int(n)
+    if n <= 0:
+        raise ValueError(f"signal size n must be a positive integer, got {n}")
+    if n >= 2 ** 31:
+        raise ValueError(f"signal size n must be below 2**31 (index products must fit in int64), got {n}")
+    return n
+
+
+def _check_sparsity(sparsity, n):
+    if isinstance(sparsity, bool) or not isinstance(sparsity, (int, np.integer)):
+        raise ValueError(f"sparsity K must be an integer, got {sparsity!r}")
+    sparsity = int(sparsity)
+    if not 0 < sparsity <= n // 2:
+        raise ValueError(f"sparsity K must satisfy 0 < K <= n/2 = {n // 2} for a signal of size {n}, got {sparsity}")
+    return sparsity
+
+
+def _check_positive(name, value, minimum, allowed):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number {allowed}, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be {allowed}, got {value}")
+    return float(value)
+
+
+def _check_integer(name, value, minimum):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer of at least {minimum}, got {value!r}")
+    return int(value)
+
+
+def _check_snr(snr):
+    if (isinstance(snr, bool) or not isinstance(snr, (int, float, np.integer, np.floating)) or math.isnan(snr)
+            or snr == -math.inf):
+        raise ValueError(f"snr must be a number of decibels or numpy.inf (exactly sparse), got {snr!r}")
+    return float(snr)
+
+
+def _check_window(window):
+    if window not in WINDOWS:
+        raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
+    return window
+
+
+# ---------------------------------------------------------------------------
+# sample cache: every distinct index is read once
+
+
+class _SampleCache:
+    """Wraps the oracle: distinct indices are read once and counted per phase."""
+
+    def __init__(self, oracle, size):
+        self.oracle = oracle
+        self.size = size
+        self.indices = np.zeros(0, dtype=np.int64)
+        self.values = np.zeros(0, dtype=np.complex128)
+        self.phase = "support"
+        self.counts = {"support": 0, "magnitude": 0}
+        self.oracle_time = 0.0
+
+    @property
+    def count(self):
+        return int(self.indices.size)
+
+    def _call(self, indices):
+        start = time.perf_counter()
+        values = self.oracle(indices)
+        self.oracle_time += time.perf_counter() - start
+        values = np.asarray(values)
+        if values.shape != indices.shape:
+            raise ValueError(f"the oracle must return one value per index: asked for {indices.size} samples, "
+                             f"got an array of shape {values.shape}")
+        if not (np.issubdtype(values.dtype, np.number) and not np.issubdtype(values.dtype, np.timedelta64)):
+            raise ValueError(f"the oracle must return real or complex numbers, got dtype {values.dtype}")
+        if not np.all(np.isfinite(values)):
+            bad = int(np.count_nonzero(~np.isfinite(values)))
+            raise ValueError(f"the oracle returned {bad} NaN or infinite samples (first at index "
+                             f"{int(indices[~np.isfinite(values)][0])}); samples must be finite")
+        return values.astype(np.complex128, copy=False)
+
+    def read(self, indices):
+        """``x[indices]`` for distinct ``indices`` (any order), reading only the new ones."""
+        indices = np.asarray(indices, dtype=np.int64)
+        if self.indices.size:
+            position = np.searchsorted(self.indices, indices)
+            known = self.indices[np.minimum(position, self.indices.size - 1)] == indices
+        else:
+            position = np.zeros(indices.size, dtype=np.int64)
+            known = np.zeros(indices.size, dtype=bool)
+        out = np.empty(indices.size, dtype=np.complex128)
+        if known.any():
+            out[known] = self.values[position[known]]
+        if not known.all():
+            order = np.argsort(indices[~known], kind="stable")
+            missing = indices[~known][order]
+            values = self._call(missing)
+            new = np.flatnonzero(~known)[order]
+            out[new] = values
+            insert_at = position[~known][order]
+            self.indices = np.insert(self.indices, insert_at, missing)
+            self.values = np.insert(self.values, insert_at, values)
+            self.counts[self.phase] += int(missing.size)
+        return out
+
+
+# ---------------------------------------------------------------------------
+# number theory
+
+
+def _divisors(n):
+    factors = {}
+    remaining = n
+    candidate = 2
+    while candidate * candidate <= remaining:
+        while remaining % candidate == 0:
+            factors[candidate] = factors.get(candidate, 0) + 1
+            remaining //= candidate
+        candidate += 1 if candidate == 2 else 2
+    if remaining > 1:
+        factors[remaining] = factors.get(remaining, 0) + 1
+    divisors = np.array([1], dtype=np.int64)
+    for prime, power in factors.items():
+        divisors = (divisors[:, None] * prime ** np.arange(power + 1, dtype=np.int64)[None, :]).ravel()
+    return np.sort(divisors)
+
+
+def _choose_bins(divisors, target):
+    """The divisor of n nearest ``target`` on a log scale (``B`` must divide ``n``)."""
+    target = max(float(target), 1.0)
+    return int(divisors[np.argmin(np.abs(np.log(divisors / target)))])
+
+
+def _random_coprime(rng, n):
+    if n == 1:
+        return 1
+    while True:
+        sigma = int(rng.integers(1, n))
+        if math.gcd(sigma, n) == 1:
+            return sigma
+
+
+# ---------------------------------------------------------------------------
+# filters (thesis 2.3.4)
+
+
+class _Response:
+    """Exact frequency response ``T(d) = sum_j G[j] exp(-2 pi i j d / n) / Z`` of a symmetric filter, ``|d| <= reach``.
+
+    Two exact evaluators, whichever is cheaper to build: a table of every
+    integer offset (Bluestein's chirp-z transform, cost ``~ w + 2 reach``), or
+    a Taylor expansion in ``d`` around a coarse grid of step ``q = n / L``
+    whose coefficients are ``L``-point FFTs of the moments ``j^r G[j]``
+    (cost ``~ terms * L`` with ``L ~ pi w / 2``, independent of ``reach``).
+    Both agree with the direct sum to about 1e-15.
+    """
+
+    TERMS = 18
+
+    def __init__(self, taps, n, reach, divisors):
+        self.reach = int(reach)
+        half_width = (taps.size - 1) // 2
+        candidates = divisors[divisors >= math.pi * half_width]
+        grid = int(candidates[0]) if candidates.size else 0
+        table_cost = 3 * (1 << (2 * taps.size + 2 * self.reach).bit_length())
+        taylor_cost = self.TERMS * 2 * grid
+        if grid == 0 or table_cost <= taylor_cost:
+            table = _frequency_response(taps, n, self.reach).real
+            self.scale = table[self.reach]
+            self.table = table / self.scale
+            self.coefficients = None
+            return
+        self.table = None
+        self.step = n // grid
+        self.points = int(math.ceil(self.reach / self.step)) + 1
+        j = np.arange(-half_width, half_width + 1)
+        ratio = -2j * np.pi * j * self.step / (2 * n)  # |ratio| <= pi h / L <= 1
+        term = taps.astype(np.complex128)
+        rows = np.empty((self.TERMS, 2 * self.points + 1), dtype=np.complex128)
+        where = j % grid
+        keep = np.arange(-self.points, self.points + 1) % grid
+        for power in range(self.TERMS):
+            folded = np.bincount(where, term.real, grid) + 1j * np.bincount(where, term.imag, grid)
+            rows[power] = fft.fftn(folded)[keep]
+            term = term * ratio / (power + 1)
+        self.coefficients = rows
+        self.scale = 1.0
+        self.scale = float(self(np.zeros(1, dtype=np.int64))[0])
+        self.coefficients = rows / self.scale
+
+    def __call__(self, offset):
+        """``T(offset)`` for integer offsets (0 where ``|offset| > reach``)."""
+        offset = np.asarray(offset, dtype=np.int64)
+        inside = np.abs(offset) <= self.reach
+        if self.table is not None:
+            return np.where(inside, self.table[np.clip(offset + self.reach, 0, 2 * self.reach)], 0.0)
+        clipped = np.clip(offset, -self.reach, self.reach)
+        nearest = (clipped + self.step // 2) // self.step
+        fraction = (clipped - nearest * self.step) * (2.0 / self.step)
+        column = nearest + self.points
+        value = self.coefficients[-1, column]
+        for power in range(self.TERMS - 2, -1, -1):
+            value = value * fraction + self.coefficients[power, column]
+        return np.where(inside, value.real, 0.0)
+
+
+@dataclass(frozen=True)
+class _Filter:
+    bins: int
+    half_width: int  # taps at j = -half_width .. half_width
+    taps: np.ndarray  # scaled so a hash yields coefficients: bin = X[f] * phase * response
+    response: _Response  # T(d), T(0) = 1, zero beyond response.reach
+    neighbours: int  # bins on each side a frequency reaches
+
+    @property
+    def width(self):
+        return 2 * self.half_width + 1
+
+    @property
+    def gain(self):
+        """Noise energy per bin per unit of sample noise variance: ``sum_j taps[j]^2``."""
+        return float(np.sum(self.taps ** 2))
+
+    @property
+    def reach(self):
+        return self.response.reach
+
+
+def _chebyshev_window(length, leakage):
+    """Dolph-Chebyshev window of odd ``length`` with side lobes at ``leakage`` (relative)."""
+    order = length - 1
+    beta = np.cosh(np.arccosh(1.0 / leakage) / order)
+    x = beta * np.cos(np.pi * np.arange(length) / length)
+    p = np.empty(length)
+    above, below, inside = x > 1, x < -1, np.abs(x) <= 1
+    p[above] = np.cosh(order * np.arccosh(x[above]))
+    p[below] = np.cosh(order * np.arccosh(-x[below]))  # (-1)^order with order even
+    p[inside] = np.cos(order * np.arccos(x[inside]))
+    spectrum = np.real(fft.fftn(p))
+    half = (length + 1) // 2
+    window = np.concatenate((spectrum[half - 1:0:-1], spectrum[:half]))
+    return window / window.max()
+
+
+def _bspline_window(half_width, boxes):
+    """The thesis's flat-window base (2.3.4): a box convolved ``boxes`` times (a B-spline), support ``2 h + 1``."""
+    from scipy.interpolate import BSpline
+
+    knots = np.linspace(-half_width - 1, half_width + 1, boxes + 1)
+    window = BSpline.basis_element(knots, extrapolate=False)(np.arange(-half_width, half_width + 1))
+    window = np.nan_to_num(window)
+    return window / window.max()
+
+
+def _frequency_response(taps, n, reach):
+    """``sum_j taps[j] exp(-2 pi i j d / n)`` for ``d = -reach .. reach`` (taps at ``j = -h .. h``).
+
+    Bluestein's chirp-z transform: ``j d = (j^2 + d^2 - (d - j)^2) / 2`` turns
+    the sum into a convolution, so the table costs one FFT of about
+    ``2 w + 2 reach`` points instead of a length-``n`` transform.
+    """
+    h = (taps.size - 1) // 2
+
+    def chirp(m):  # exp(i pi m^2 / n), with m^2 reduced exactly modulo 2n
+        m = np.asarray(m, dtype=np.int64)
+        return np.exp(1j * np.pi * ((m * m) % (2 * n)) / n)
+
+    j = np.arange(-h, h + 1)
+    a = taps * np.conj(chirp(j))
+    c = chirp(np.arange(-(reach + h), reach + h + 1))
+    length = a.size + c.size - 1
+    size = 1 << (length - 1).bit_length()
+    product = fft.ifftn(fft.fftn(np.pad(a, (0, size - a.size))) * fft.fftn(np.pad(c, (0, size - c.size))))
+    d = np.arange(-reach, reach + 1)
+    return np.conj(chirp(d)) * product[2 * h: 2 * h + 2 * reach + 1]
+
+
+def _make_filter(n, bins, width, window, leakage, divisors=None):
+    """Flat window for ``bins`` bins: base window times a Dirichlet kernel one bin wide (2.3.4)."""
+    half_width = max(1, int(round(width * bins / 2)))
+    half_width = min(half_width, (n - 1) // 2)
+    j = np.arange(-half_width, half_width + 1)
+    passband = n // (2 * bins)  # frequencies -passband .. passband: one bin of n / B
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dirichlet = np.sin(np.pi * (2 * passband + 1) * j / n) / np.sin(np.pi * j / n)
+    dirichlet[half_width] = 2 * passband + 1
+    log_leakage = math.log(1.0 / leakage)
+    if window == "gaussian":
+        sigma = half_width / math.sqrt(2 * log_leakage)
+        base = np.exp(-0.5 * (j / sigma) ** 2)
+        lobe = 1.1 * log_leakage * n / (math.pi * half_width)
+    elif window == "chebyshev":
+        base = _chebyshev_window(j.size, leakage)
+        lobe = 1.2 * math.log(2.0 / leakage) * n / (2 * math.pi * half_width)
+    else:
+        boxes = int(min(12, max(2, 2 * round(log_leakage / 2 / math.log(10) * 1.0))))
+        base = _bspline_window(half_width, boxes)
+        first_null = n * boxes / (2 * half_width + 2)
+        lobe = first_null * max(1.0, leakage ** (-1.0 / boxes) / math.pi)
+    reach = int(min(passband + math.ceil(lobe), (n - 1) // 2))
+    taps = base * dirichlet
+    response = _Response(taps, n, reach, _divisors(n) if divisors is None else divisors)
+    taps = taps * (n / response.scale)
+    neighbours = int(math.ceil(reach * bins / n + 0.5))
+    return _Filter(bins, half_width, taps, response, neighbours)
+
+
+# ---------------------------------------------------------------------------
+# hashing
+
+
+def _windows(shifts, half_width):
+    """Merge the windows ``[s - h, s + h]``: the offsets to read and each window's start in them."""
+    starts = shifts - half_width
+    ends = shifts + half_width + 1
+    offsets, first = [], np.empty(shifts.size, dtype=np.int64)
+    total = 0
+    block_start, block_end = starts[0], ends[0]
+    members = [0]
+    for index in range(1, shifts.size):
+        if starts[index] <= block_end:
+            block_end = max(block_end, ends[index])
+            members.append(index)
+            continue
+        offsets.append(np.arange(block_start, block_end))
+        for member in members:
+            first[member] = total + starts[member] - block_start
+        total += block_end - block_start
+        block_start, block_end, members = starts[index], ends[index], [index]
+    offsets.append(np.arange(block_start, block_end))
+    for member in members:
+        first[member] = total + starts[member] - block_start
+    return np.concatenate(offsets), first
+
+
+def _window_cost(shifts, half_width):
+    return int(_windows(np.asarray(shifts, dtype=np.int64), half_width)[0].size)
+
+
+@dataclass
+class _Hash:
+    sigma: int
+    tau: int
+    filter: _Filter
+    shifts: np.ndarray
+    bins: np.ndarray  # (S, B): bin values, in coefficient units
+
+
+def _hash_to_bins(cache, n, filt, sigma, tau, shifts):
+    """HashToBins (Algorithm 5) at every shift: ``(S, B)`` bins from the samples of one permutation."""
+    shifts = np.asarray(shifts, dtype=np.int64)
+    offsets, first = _windows(shifts, filt.half_width)
+    values = cache.read((sigma * offsets + tau) % n)
+    width, bins = filt.width, filt.bins
+    rows = values[first[:, None] + np.arange(width)[None, :]] * filt.taps
+    start = (-filt.half_width) % bins
+    padded = -(-(start + width) // bins) * bins
+    buffer = np.zeros((shifts.size, padded), dtype=np.complex128)
+    buffer[:, start:start + width] = rows
+    folded = buffer.reshape(shifts.size, padded // bins, bins).sum(axis=1)
+    return _Hash(sigma, tau, filt, shifts, fft.fftn(folded, axes=(1,)))
+
+
+def _response(n, hashed, frequencies):
+    """Where the frequencies land in a hash: bins ``(K, 2D+1)`` and weights ``(S, K, 2D+1)``.
+
+    ``hashed.bins[s, bins[k, i]] += X[f_k] * weights[s, k, i]`` is the exact
+    contribution of ``f_k`` (to the filter's ``leakage`` level); the centre
+    column ``i = D`` is the bin nearest ``f_k``.
+    """
+    filt = hashed.filter
+    frequencies = np.asarray(frequencies, dtype=np.int64)
+    permuted = (hashed.sigma * frequencies) % n
+    step = n // filt.bins
+    centre = (permuted + step // 2) // step
+    around = centre[:, None] + np.arange(-filt.neighbours, filt.neighbours + 1)[None, :]
+    offset = around * step - permuted[:, None]
+    table = filt.response(offset)
+    rotation = np.exp(2j * np.pi * ((frequencies * hashed.tau) % n) / n)
+    shift_phase = np.exp(2j * np.pi * ((permuted[None, :] * hashed.shifts[:, None]) % n) / n)
+    weights = (rotation[None, :] * shift_phase)[:, :, None] * table[None, :, :]
+    return around % filt.bins, weights
+
+
+def _model(n, hashed, frequencies, values):
+    """Bins of the hash that the coefficients ``values`` at ``frequencies`` would produce."""
+    bins_count = hashed.filter.bins
+    shifts = hashed.shifts.size
+    model = np.zeros((shifts, bins_count), dtype=np.complex128)
+    if len(frequencies) == 0:
+        return model
+    where, weights = _response(n, hashed, frequencies)
+    contributions = weights * values[None, :, None]
+    flat = (np.arange(shifts)[:, None, None] * bins_count + where[None, :, :]).ravel()
+    size = shifts * bins_count
+    model += (np.bincount(flat, contributions.real.ravel(), size)
+              + 1j * np.bincount(flat, contributions.imag.ravel(), size)).reshape(shifts, bins_count)
+    return model
+
+
+def _shift_schedule(n, bins, phase_error, ratio):
+    """Shifts ``0, s_1, s_1 r, ...``: the bin fixes ``p`` to ``+- n/B``, each shift refines it ``r`` times."""
+    shifts = [0]
+    shift = max(1, bins // 4)
+    target = min(n / 2, 3 * phase_error * n / math.pi)  # last estimate within 1/6 of an integer
+    while True:
+        shifts.append(shift)
+        if shift >= target:
+            break
+        shift = int(min(shift * ratio, max(math.ceil(target), 2 * shift)))
+    return np.array(shifts, dtype=np.int64)
+
+
+def _locate(n, hashed, residual, occupied):
+    """Frequencies of the occupied bins by phase shifts, with their values and a singleton test."""
+    filt = hashed.filter
+    step = n // filt.bins
+    u = residual[:, occupied]
+    estimate = occupied.astype(np.float64) * step  # bin centres: p to +- n/B
+    reference = u[0]
+    for level in range(1, hashed.shifts.size):
+        shift = float(hashed.shifts[level])
+        fraction = np.angle(u[level] * np.conj(reference)) / (2 * np.pi)
+        wraps = np.round(estimate * shift / n - fraction)
+        estimate = (fraction + wraps) * n / shift
+    permuted = np.round(estimate).astype(np.int64) % n
+    phases = np.exp(2j * np.pi * ((permuted[None, :] * hashed.shifts[:, None]) % n) / n)
+    amplitude = np.mean(u * np.conj(phases), axis=0)
+    misfit = np.max(np.abs(u - amplitude[None, :] * phases) ** 2, axis=0)
+    misfit /= np.maximum(np.mean(np.abs(u) ** 2, axis=0), 1e-300)
+    offset = occupied * step - permuted
+    offset = (offset + n // 2) % n - n // 2
+    response = filt.response(offset)
+    return permuted, amplitude, misfit, response
+
+
+# ---------------------------------------------------------------------------
+# the transform
+
+
+def _noise_level(energy):
+    """Noise energy per bin from the lower quantile of bin energies (exponential law)."""
+    if energy.size < 4:
+        return float(np.min(energy))
+    return float(np.quantile(energy, NOISE_QUANTILE) / -math.log(1 - NOISE_QUANTILE))
+
+
+def _merge(frequencies, values, new_frequencies, new_values):
+    """Add ``new_values`` at ``new_frequencies`` (corrections where already present)."""
+    position = np.searchsorted(frequencies, new_frequencies)
+    present = np.zeros(new_frequencies.size, dtype=bool)
+    if frequencies.size:
+        present = frequencies[np.minimum(position, frequencies.size - 1)] == new_frequencies
+    values = values.copy()
+    np.add.at(values, position[present], new_values[present])
+    order = np.argsort(new_frequencies[~present], kind="stable")
+    frequencies = np.insert(frequencies, position[~present][order], new_frequencies[~present][order])
+    values = np.insert(values, position[~present][order], new_values[~present][order])
+    return frequencies, values, int(np.count_nonzero(~present))
+
+
+def _conjugate_gradient(matrix, right, diagonal, iterations=100):
+    """Solve the Hermitian positive definite ``matrix x = right`` by Jacobi-preconditioned CG."""
+    solution = np.zeros_like(right)
+    residual = right.copy()
+    target = CG_TOLERANCE * np.linalg.norm(right)
+    if target == 0:
+        return solution
+    preconditioned = residual / diagonal
+    direction = preconditioned.copy()
+    product = np.vdot(residual, preconditioned).real
+    for _ in range(iterations):
+        image = matrix @ direction
+        step = product / np.vdot(direction, image).real
+        solution += step * direction
+        residual -= step * image
+        if np.linalg.norm(residual) <= target:
+            break
+        preconditioned = residual / diagonal
+        previous, product = product, np.vdot(residual, preconditioned).real
+        direction = preconditioned + (product / previous) * direction
+    return solution
+
+
+def _energy_statistics(energy, touched):
+    """Noise level (lower quartile) of a hash's bin energies and the median energy of its touched bins."""
+    stride = max(1, energy.size // 65536)  # a regular subsample is plenty for two quantiles
+    level = _noise_level(energy[::stride])
+    spread = float(np.median(energy[touched][::stride])) if touched.any() else 0.0
+    return level, spread
+
+
+def _polish(n, hashes, frequencies, values, scale, rounds=3, robust_start=False, variance=math.inf):
+    """Robust least squares for the values over every bin read so far (no new samples).
+
+    Every bin of every hash (at every shift) is a linear measurement of the
+    coefficients through the filter response: ``bins = A values + noise``.
+    The first round solves the noise-weighted least squares over every bin
+    the coefficients reach (unless ``robust_start``: the values are already
+    robust estimates, such as medians); later rounds drop the bins whose residual the
+    model does not explain (more than ``OCCUPANCY_FACTOR`` noise levels and
+    ``OUTLIER_FACTOR`` times the median residual of the hash: bins holding a
+    coefficient not found yet). The normal equations are small and sparse
+    (coefficients couple only through shared bins) and diagonally dominant;
+    each hash's Gram matrix is formed once and the outlier bins' share is
+    subtracted. ``variance`` caps the noise variance per sample. Returns the
+    values and the noise level per bin of each hash.
+    """
+    floor = (RELATIVE_FLOOR * scale) ** 2
+    gains = np.array([hashed.filter.gain for hashed in hashes])
+    sizes = [hashed.bins.size for hashed in hashes]
+    starts = np.concatenate(([0], np.cumsum(sizes)))
+    raw = np.concatenate([hashed.bins.ravel() for hashed in hashes])
+    levels = np.empty(len(hashes))
+    spread = np.zeros(len(hashes))
+    if frequencies.size == 0:
+        for index in range(len(hashes)):
+            levels[index] = _noise_level(np.abs(raw[starts[index]:starts[index + 1]]) ** 2)
+        return values, gains * min(np.min(levels / gains), variance)
+    blocks, grams = [], []
+    for hashed, start in zip(hashes, starts):
+        where, weights = _response(n, hashed, frequencies)
+        bins_count = hashed.filter.bins
+        row = np.arange(hashed.shifts.size)[:, None, None] * bins_count + where[None, :, :]
+        nonzero = weights != 0
+        column = np.broadcast_to(np.arange(frequencies.size)[None, :, None], weights.shape)[nonzero]
+        block = scipy.sparse.csr_matrix((weights[nonzero], (row[nonzero], column)),
+                                        shape=(hashed.bins.size, frequencies.size))
+        blocks.append(block)
+        grams.append((block.conj().T @ block).tocsr())
+    matrix = scipy.sparse.vstack(blocks, format="csr")
+    adjoint = matrix.conj().T.tocsr()
+    touched = np.diff(matrix.indptr) > 0
+    which = np.repeat(np.arange(len(hashes)), sizes)
+    for round_ in range(rounds):
+        residual = raw - matrix @ values
+        energy = np.abs(residual) ** 2
+        for index in range(len(hashes)):
+            segment = slice(starts[index], starts[index + 1])
+            levels[index], spread[index] = _energy_statistics(energy[segment], touched[segment])
+        levels = gains * min(np.min(levels / gains), variance)  # noise variance: the least contaminated hash
+        level = levels + floor
+        row_weight = 1.0 / level[which]
+        normal = grams[0] * (1.0 / level[0])
+        for index in range(1, len(hashes)):
+            normal = normal + grams[index] * (1.0 / level[index])
+        selected = touched
+        if round_ > 0 or robust_start:  # drop the bins that the model does not explain (coefficients not found yet)
+            limit = np.maximum(OCCUPANCY_FACTOR * level, OUTLIER_FACTOR * spread)[which]
+            selected = touched & (energy <= limit)
+            outliers = np.flatnonzero(touched & ~selected)
+            if outliers.size:
+                part = matrix[outliers]
+                normal = normal - part.conj().T @ scipy.sparse.diags(row_weight[outliers]) @ part
+        right = adjoint @ np.where(selected, residual * row_weight, 0)
+        diagonal = normal.diagonal().real
+        ridge = 1e-12 * max(float(diagonal.max(initial=0.0)), 1e-300)
+        tiny = diagonal <= ridge  # coefficients with no bin left: keep their values
+        if tiny.any():
+            normal = normal + scipy.sparse.diags(np.where(tiny, ridge, 0.0))
+        values = values + _conjugate_gradient(normal.tocsr(), right, np.maximum(diagonal, ridge))
+    return values, levels
+
+
+def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width=None, leakage=None,
+        shift_ratio=None, magnitude_hashes=None, max_iterations=None, dense_fraction=0.5, seed=None):
+    r"""Sparse Fourier Transform of a signal read through ``oracle`` (thesis 2.3, Algorithms 3-7).
+
+    Parameters
+    ----------
+    oracle : callable
+        ``oracle(indices) -> values``: the signal at the given indices (a
+        sorted int64 array of distinct indices in ``[0, n)``), one finite
+        real or complex value each. No index is asked for twice.
+    n : int
+        Signal length, ``0 < n < 2**31``. Powers of two and smooth sizes
+        work best: the number of bins ``B`` must divide ``n``.
+    sparsity : int
+        ``K``, the number of coefficients to return, ``0 < K <= n / 2``.
+    alpha : float, optional
+        Bins per coefficient, ``B = alpha K`` rounded to a divisor of ``n``
+        on a log scale (at least 1; default 4).
+    snr : float, optional
+        Expected signal-to-noise ratio in decibels (the thesis's ``R``);
+        ``numpy.inf`` (default) for exactly sparse signals. It sets the
+        filter's stop-band level and the location shifts; the noise level
+        itself is measured from the bins.
+    window : {'chebyshev', 'gaussian', 'bspline'}, optional
+        Base of the flat window: Dolph-Chebyshev (default: fewest samples in
+        ``benchmarks/sft.py``), Gaussian (exact to 1e-14 instead of 1e-11) or
+        the thesis's B-spline (2.3.4, needs ``width >= 6``).
+    width : float, optional
+        Filter taps per bin, ``w = width * B`` (default 3, at least 1).
+    leakage : float, optional
+        Stop-band level of the filter relative to its pass band, in
+        ``(0, 0.1)``; default 1e-10 for exactly sparse signals, else
+        ``0.1 / sqrt(snr alpha K)`` clipped to ``[1e-10, 1e-3]``.
+    shift_ratio : int, optional
+        Refinement factor ``r >= 2`` between location shifts (default: the
+        largest power of two the expected phase noise allows).
+    magnitude_hashes : int, optional
+        New single-window hashes read for magnitude estimation (default 0:
+        the detection samples are reused). With at least three full-size
+        hashes the values start from their median (Algorithm 7).
+    max_iterations : int, optional
+        Most detection hashes (default ``12 + 2 log2 K``).
+    dense_fraction : float, optional
+        Read all ``n`` samples and take one FFT when the sparse transform
+        would read at least this fraction of them, in ``(0, 1]`` (default 0.5).
+    seed : int or numpy.random.Generator, optional
+        Randomness of the permutations.
+
+    Returns
+    -------
+    SparseFourierTransformResult
+        ``.estimate``: a :class:`~sparselt.fourier.sparse.SparseFourier` of
+        shape ``(n,)`` in the ``numpy.fft.fft`` convention (``to_signal()``
+        approximates the signal); ``.samples`` (distinct samples read, at
+        most ``n``), ``.support_samples``, ``.magnitude_samples``,
+        ``.iterations``, ``.time`` per phase, ``.stop_reason``, ``.bins``.
+
+    Raises
+    ------
+    ValueError
+        ``n`` not a positive integer below ``2**31``, ``K`` outside
+        ``(0, n/2]``, ``alpha < 1``, a bad window, width, leakage, snr or
+        option, or an oracle returning the wrong number of values or NaN or
+        infinite values.
+
+    Notes
+    -----
+    Hash ``t`` draws ``sigma`` coprime with ``n`` and ``tau``, and reads
+    ``x[(sigma (j + s) + tau) mod n]`` for the ``w`` taps ``j`` of the window
+    at each location shift ``s``; bin ``h`` then holds
+
+    .. math:: u_s[h] = \sum_f X[f] e^{2 \pi i (f \tau + p s) / n} T(h n / B - p),
+              \quad p = \sigma f \bmod n,
+
+    with ``T`` the filter's exact response. Shifts ``0, B/4, B r/4, ...``
+    give ``p s / n mod 1`` from phases; each refines ``p`` by ``r`` until it
+    is an integer, and a bin is accepted when that one frequency explains all
+    its shifts (worst shift within ``SINGLETON_RESIDUAL`` of the bin energy)
+    and ``|T| >= MINIMUM_RESPONSE``. Everything found is subtracted from the
+    next hash through ``T`` (exact, in the bin domain), so it only needs
+    ``B = alpha K_remaining`` bins (at least ``BINS_FLOOR`` of the first).
+    After every hash the values are polished by robust least squares over
+    all bins read so far, which costs no samples and makes exactly sparse
+    recovery exact. It stops when a hash has no occupied bin (energy above
+    ``OCCUPANCY_FACTOR`` noise levels; the noise variance per sample is the
+    least lower-quartile estimate over hashes), or when ``K`` are found and
+    two hashes add nothing new (``'stagnated'``). The ``K`` largest are kept
+    (Algorithm 3's prune) and polished again.
+
+    References
+    ----------
+    Thesis 2.3 (Algorithms 3-7) and Table 6.1; Hassanieh, Indyk, Katabi and
+    Price, SODA 2012 and STOC 2012; Indyk, Kapralov and Price, SODA 2014.
+    """
+    n = _check_size(n)
+    sparsity = _check_sparsity(sparsity, n)
+    alpha = _check_positive("alpha", alpha, 1.0, "at least 1 (B = alpha K bins)")
+    snr = _check_snr(snr)
+    window = _check_window(window)
+    noisy = math.isfinite(snr)
+    snr_linear = 10 ** (snr / 10) if noisy else math.inf
+    width = 3.0 if width is None else _check_positive("width", width, 1.0, "at least 1 (taps per bin)")
+    if leakage is None:
+        leakage = 1e-10 if not noisy else float(np.clip(0.1 / math.sqrt(snr_linear * alpha * sparsity), 1e-10, 1e-3))
+    else:
+        leakage = _check_positive("leakage", leakage, 0.0, "in (0, 0.1)")
+        if not 0 < leakage < 0.1:
+            raise ValueError(f"leakage must be in (0, 0.1), got {leakage}")
+    phase_error = LEAKAGE_PHASE_ERROR
+    if noisy:
+        phase_error = max(phase_error, 1.5 / math.sqrt(max(snr_linear * alpha, 1.0)))
+    if shift_ratio is None:
+        shift_ratio = int(2 ** max(1, math.floor(math.log2(math.pi / (3 * phase_error)))))
+    shift_ratio = _check_integer("shift_ratio", shift_ratio, 2)
+    magnitude_hashes = _check_integer("magnitude_hashes", 0 if magnitude_hashes is None else magnitude_hashes, 0)
+    if max_iterations is None:
+        max_iterations = 12 + 2 * int(math.log2(sparsity + 1))
+    max_iterations = _check_integer("max_iterations", max_iterations, 1)
+    dense_fraction = _check_positive("dense_fraction", dense_fraction, 0.0, "in (0, 1]")
+    if not 0 < dense_fraction <= 1:
+        raise ValueError(f"dense_fraction must be in (0, 1], got {dense_fraction}")
+    if not callable(oracle):
+        raise ValueError(f"oracle must be callable as oracle(indices) -> values, got {type(oracle).__name__}")
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    parameters = dict(n=n, sparsity=sparsity, alpha=alpha, snr=snr, window=window, width=width, leakage=leakage,
+                      shift_ratio=shift_ratio, magnitude_hashes=magnitude_hashes, max_iterations=max_iterations,
+                      dense_fraction=dense_fraction, seed=seed if not isinstance(seed, np.random.Generator) else None)
+
+    cache = _SampleCache(oracle, n)
+    timing = {"setup": 0.0, "support": 0.0, "magnitude": 0.0}
+    divisors = _divisors(n)
+    filters = {}
+
+    def get_filter(bins):
+        if bins not in filters:
+            start = time.perf_counter()
+            filters[bins] = _make_filter(n, bins, width, window, leakage, divisors)
+            timing["setup"] += time.perf_counter() - start
+        return filters[bins]
+
+    def charge(phase, start, setup_before, oracle_before):
+        """Add the time since ``start`` to ``phase``, less filter setup and oracle time spent meanwhile."""
+        spent = time.perf_counter() - start
+        spent -= (timing["setup"] - setup_before) + (cache.oracle_time - oracle_before)
+        timing[phase] += max(spent, 0.0)
+
+    def finish(frequencies, values, history, iterations, reason, hashes, transforms=0):
+        if values.size > sparsity:
+            keep = np.sort(np.argsort(-np.abs(values), kind="stable")[:sparsity])
+            frequencies, values = frequencies[keep], values[keep]
+        nonzero = values != 0
+        estimate = SparseFourier((n,), frequencies[nonzero], values[nonzero])
+        times = dict(timing)
+        times["oracle"] = cache.oracle_time
+        return SparseFourierTransformResult(
+            estimate=estimate, residual_history=tuple(history), iterations=iterations, samples=cache.count,
+            time=times, stop_reason=reason, transforms=transforms, support_samples=cache.counts["support"],
+            magnitude_samples=cache.counts["magnitude"], bins=tuple(h.filter.bins for h in hashes),
+            parameters=parameters)
+
+    def dense(history, iterations, hashes):
+        start, setup_before, oracle_before = time.perf_counter(), timing["setup"], cache.oracle_time
+        cache.phase = "support"
+        signal = cache.read(np.arange(n, dtype=np.int64))
+        spectrum = fft.fftn(signal)
+        keep = np.sort(np.argsort(-np.abs(spectrum), kind="stable")[:sparsity])
+        charge("support", start, setup_before, oracle_before)
+        return finish(keep.astype(np.int64), spectrum[keep], history, iterations, "dense", hashes, transforms=1)
+
+    start = time.perf_counter()
+    usable = divisors[(divisors >= MINIMUM_BINS) & (divisors <= n // 4)]  # bins a hash may have
+    first_bins = _choose_bins(usable, alpha * sparsity) if usable.size else 0
+    first_shifts = _shift_schedule(n, first_bins, phase_error, shift_ratio)
+    first_cost = _window_cost(first_shifts, max(1, int(round(width * first_bins / 2))))
+    first_width = 2 * max(1, int(round(width * first_bins / 2))) + 1
+    if (first_bins == 0 or first_bins < alpha * sparsity / 4  # no divisor of n near alpha K
+            or 1.5 * first_cost + magnitude_hashes * first_width >= dense_fraction * n):
+        timing["setup"] += time.perf_counter() - start
+        return dense([], 0, [])
+
+    # -- support detection (Algorithms 3, 4, 6) ------------------------------
+    frequencies = np.zeros(0, dtype=np.int64)
+    values = np.zeros(0, dtype=np.complex128)
+    hashes, history = [], []
+    reason, quiet, rejected, iterations = "max_iterations", 0, 0, 0
+    scale = 0.0
+    variance = math.inf  # noise variance per sample, least over hashes
+    timing["setup"] += time.perf_counter() - start
+    start, setup_before, oracle_before = time.perf_counter(), timing["setup"], cache.oracle_time
+    for iterations in range(1, max_iterations + 1):
+        remaining = max(sparsity - frequencies.size, rejected, 1)
+        least = max(BINS_FLOOR * first_bins, BIN_SNR * sparsity / snr_linear)
+        bins = _choose_bins(usable, max(alpha * remaining, least))
+        filt = get_filter(bins)
+        shifts = _shift_schedule(n, bins, phase_error, shift_ratio)
+        if cache.count + _window_cost(shifts, filt.half_width) >= dense_fraction * n:
+            charge("support", start, setup_before, oracle_before)
+            return dense(history, iterations, hashes)
+        sigma, tau = _random_coprime(rng, n), int(rng.integers(n))
+        hashed = _hash_to_bins(cache, n, filt, sigma, tau, shifts)
+        hashes.append(hashed)
+        residual = hashed.bins - _model(n, hashed, frequencies, values)
+        energy = np.mean(np.abs(residual) ** 2, axis=0)
+        raw_energy = float(np.sum(np.abs(hashed.bins[0]) ** 2))
+        history.append(float(np.sum(np.abs(residual[0]) ** 2) / max(raw_energy, 1e-300)))
+        scale = max(scale, float(np.sqrt(np.max(np.mean(np.abs(hashed.bins) ** 2, axis=0)))))
+        variance = min(variance, _noise_level(energy) / filt.gain)
+        if noisy:  # the noise share of the power of every sample read so far
+            variance = min(variance, float(np.mean(np.abs(cache.values) ** 2)) / (1 + snr_linear))
+        level = variance * filt.gain
+        threshold = max(OCCUPANCY_FACTOR * level, (RELATIVE_FLOOR * scale) ** 2)
+        occupied = np.flatnonzero(energy > threshold)
+        if occupied.size == 0:
+            reason = "converged"
+            break
+        permuted, amplitude, misfit, response = _locate(n, hashed, residual, occupied)
+        singleton = misfit <= SINGLETON_RESIDUAL + SINGLETON_NOISE * level / np.maximum(energy[occupied], 1e-300)
+        central = np.abs(response) >= MINIMUM_RESPONSE
+        accept = singleton & central
+        rejected = int(np.count_nonzero(~singleton & central))
+        found = (pow(sigma, -1, n) * permuted[accept]) % n if n > 1 else permuted[accept]
+        rotation = np.exp(2j * np.pi * ((found * tau) % n) / n)
+        estimates = amplitude[accept] / (response[accept] * rotation)
+        # one report per frequency: the bin where the filter response is largest
+        order = np.lexsort((-np.abs(response[accept]), found))
+        found, estimates = found[order], estimates[order]
+        first = np.ones(found.size, dtype=bool)
+        first[1:] = found[1:] != found[:-1]
+        frequencies, values, added = _merge(frequencies, values, found[first], estimates[first])
+        values, levels = _polish(n, hashes, frequencies, values, scale, rounds=DETECTION_ROUNDS, variance=variance)
+        variance = min(variance, levels[-1] / filt.gain)
+        significant = np.abs(values) ** 2 > max(levels[-1], (RELATIVE_FLOOR * scale) ** 2)
+        frequencies, values = frequencies[significant], values[significant]
+        quiet = quiet + 1 if added == 0 else 0
+        if frequencies.size >= sparsity and quiet >= 2:
+            reason = "stagnated"
+            break
+    charge("support", start, setup_before, oracle_before)
+
+    # -- magnitude estimation (Algorithm 7) ----------------------------------
+    start, setup_before, oracle_before = time.perf_counter(), timing["setup"], cache.oracle_time
+    cache.phase = "magnitude"
+    if frequencies.size > sparsity:  # prune (Algorithm 3) before the final values
+        keep = np.sort(np.argsort(-np.abs(values), kind="stable")[:sparsity])
+        frequencies, values = frequencies[keep], values[keep]
+    if frequencies.size:
+        full = _choose_bins(usable, alpha * frequencies.size)
+        filt = get_filter(full)
+        for _ in range(magnitude_hashes):
+            if cache.count + filt.width >= dense_fraction * n:
+                break
+            hashed = _hash_to_bins(cache, n, filt, _random_coprime(rng, n), int(rng.integers(n)), np.zeros(1, np.int64))
+            hashes.append(hashed)
+        large = [hashed for hashed in hashes if hashed.filter.bins >= full / 2]
+        median = len(large) >= 3
+        if median:  # Algorithm 7: each full-size hash estimates every coefficient from its own bin
+            estimates = []
+            for hashed in large:
+                where, weights = _response(n, hashed, frequencies)
+                centre = hashed.filter.neighbours
+                residual = hashed.bins[0] - _model(n, hashed, frequencies, values)[0]
+                estimates.append(values + residual[where[:, centre]] / weights[0, :, centre])
+            estimates = np.array(estimates)
+            values = np.median(estimates.real, axis=0) + 1j * np.median(estimates.imag, axis=0)
+        values = _polish(n, hashes, frequencies, values, scale, robust_start=median, variance=variance)[0]
+    charge("magnitude", start, setup_before, oracle_before)
+    return finish(frequencies, values, history, iterations, reason, hashes)
+
+
+# ---------------------------------------------------------------------------
+# rank-1 lattice reduction (thesis 6.1.1, eq. 6.1-6.2)
+
+
+def _check_shape(shape):
+    try:
+        shape = tuple(int(size) for size in shape)
+    except TypeError:
+        raise ValueError(f"shape must be a sequence of positive integers, got {shape!r}") from None
+    if not shape or any(size <= 0 for size in shape):
+        raise ValueError(f"shape must be a non-empty sequence of positive integers, got {shape!r}")
+    return shape
+
+
+def _lowest(shape, lowest):
+    if lowest is None:
+        return tuple(-(size // 2) for size in shape)
+    lowest = tuple(int(value) for value in np.atleast_1d(lowest))
+    if len(lowest) != len(shape):
+        raise ValueError(f"lowest must give one frequency per axis ({len(shape)}), got {lowest}")
+    return lowest
+
+
+def lattice_generator(shape):
+    """Generating vector ``g = (1, s0, s0 s1, ...)`` of the rank-1 lattice (thesis eq. 6.1)."""
+    shape = _check_shape(shape)
+    return np.concatenate(([1], np.cumprod(shape[:-1], dtype=np.int64))).astype(np.int64)
+
+
+def lattice_points(shape, indices):
+    """Lattice points ``x_j = (j g mod N) / N`` in ``[0, 1)^D`` for the given ``j`` (eq. 6.1), shape ``(m, D)``."""
+    shape = _check_shape(shape)
+    size = int(np.prod(shape, dtype=np.int64))
+    indices = np.asarray(indices, dtype=np.int64)
+    return ((indices[:, None] * lattice_generator(shape)[None, :]) % size) / size
+
+
+def lattice_to_grid(shape, indices, lowest=None):
+    """Grid spectrum index of each lattice frequency: the bijection of eq. 6.2.
+
+    A frequency ``k`` of the box ``lowest <= k < lowest + shape`` appears on
+    the lattice at ``l = sum_d k_d g_d mod N``; ``l - sum_d lowest_d g_d``
+    has the mixed-radix digits ``k_d - lowest_d`` (eq. 6.2). This returns,
+    for 1-D indices ``l``, the flat C-order index of ``k mod shape`` in the
+    ``numpy.fft.fftn`` grid of ``shape``.
+
+    Parameters
+    ----------
+    shape : sequence of int
+        The grid (and frequency box) shape ``(s_0, ..., s_{D-1})``.
+    indices : array_like of int
+        Lattice (1-D) frequencies in ``[0, N)``.
+    lowest : sequence of int, optional
+        Lowest frequency of the box on each axis; default ``-(s_d // 2)``,
+        the box of ``numpy.fft.fftfreq(s_d) * s_d``.
+    """
+    shape = _check_shape(shape)
+    lowest = _lowest(shape, lowest)
+    size = int(np.prod(shape, dtype=np.int64))
+    generator = lattice_generator(shape)
+    base = int(np.dot(np.asarray(lowest, dtype=np.int64), generator)) % size
+    digits = (np.asarray(indices, dtype=np.int64) - base) % size
+    coordinates = []
+    for axis, extent in enumerate(shape):
+        coordinates.append((digits // generator[axis] % extent + lowest[axis]) % extent)
+    return np.ravel_multi_index(tuple(coordinates), shape).astype(np.int64)
+
+
+def grid_to_lattice(shape, indices, lowest=None):
+    """Inverse of :func:`lattice_to_grid`: lattice frequency of each flat grid spectrum index."""
+    shape = _check_shape(shape)
+    lowest = _lowest(shape, lowest)
+    size = int(np.prod(shape, dtype=np.int64))
+    generator = lattice_generator(shape)
+    coordinates = np.unravel_index(np.asarray(indices, dtype=np.int64), shape)
+    total = np.zeros(np.shape(indices), dtype=np.int64)
+    for axis, extent in enumerate(shape):
+        frequency = (coordinates[axis] - lowest[axis]) % extent + lowest[axis]  # k in the box
+        total = total + frequency * generator[axis]
+    return total % size
+
+
+def sft_lattice(function, shape, sparsity, *, lowest=None, **options):
+    """Sparse Fourier Transform of a function on ``[0, 1)^D`` by rank-1 lattice reduction (thesis 6.1.1).
+
+    Parameters
+    ----------
+    function : callable
+        ``function(points) -> values`` for an ``(m, D)`` array of points in
+        ``[0, 1)^D``; one finite real or complex value per point.
+    shape : sequence of int
+        The frequency box (and grid) ``(s_0, ..., s_{D-1})``; ``N = prod(shape)``
+        must be below ``2**31``.
+    sparsity : int
+        ``K``, coefficients to recover, ``0 < K <= N / 2``.
+    lowest : sequence of int, optional
+        Lowest frequency of the box per axis, default ``-(s_d // 2)`` (the
+        frequencies of ``numpy.fft.fftn`` on the grid); use zeros for
+        ``0 <= k < shape``.
+    **options
+        Passed to :func:`sft` (``alpha``, ``snr``, ``seed``, ...).
+
+    Returns
+    -------
+    SparseFourierTransformResult
+        As :func:`sft`, with ``.estimate`` a SparseFourier of shape ``shape``:
+        ``estimate.to_signal()`` is the function on the grid ``m / shape``.
+
+    Raises
+    ------
+    ValueError
+        A shape with a zero or negative size, and every error of :func:`sft`.
+
+    Notes
+    -----
+    The samples ``y[j] = f(x_j)``, ``x_j = (j g mod N) / N``,
+    ``g = (1, s_0, s_0 s_1, ...)`` (eq. 6.1), make each term
+    ``c_k exp(2 pi i k.x)`` of a trigonometric polynomial the 1-D frequency
+    ``l = k.g mod N``: distinct for distinct ``k`` in the box (mixed radix,
+    eq. 6.2). The length-``N`` DFT of ``y`` has ``N c_k`` at ``l``, which is
+    also the ``numpy.fft.fftn`` coefficient of ``f`` on the grid at
+    ``k mod shape``. Only the lattice points the 1-D transform asks for are
+    evaluated.
+
+    References
+    ----------
+    Thesis 6.1.1, eq. 6.1-6.2; L. Kämmerer, D. Potts, T. Volkmer,
+    "High-dimensional sparse FFT based on sampling along multiple rank-1
+    lattices", Appl. Comput. Harmon. Anal. 2021.
+    """
+    shape = _check_shape(shape)
+    lowest = _lowest(shape, lowest)
+    size = int(np.prod(shape, dtype=np.int64))
+    if not callable(function):
+        raise ValueError(f"function must be callable as function(points) -> values, got {type(function).__name__}")
+
+    def oracle(indices):
+        values = np.asarray(function(lattice_points(shape, indices)))
+        if values.shape not in ((indices.size,), (indices.size, 1)):
+            raise ValueError(f"the function must return one value per point: {indices.size} points, "
+                             f"got an array of shape {values.shape}")
+        return values.reshape(indices.size)
+
+    result = sft(oracle, size, sparsity, **options)
+    line = result.estimate
+    grid = SparseFourier(shape, lattice_to_grid(shape, line.indices, lowest), line.values)
+    parameters = dict(result.parameters, shape=shape, lowest=lowest)
+    return SparseFourierTransformResult(
+        estimate=grid, residual_history=result.residual_history, iterations=result.iterations,
+        samples=result.samples, time=result.time, stop_reason=result.stop_reason, transforms=result.transforms,
+        support_samples=result.support_samples, magnitude_samples=result.magnitude_samples, bins=result.bins,
+        parameters=parameters)
