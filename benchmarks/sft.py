@@ -45,7 +45,7 @@ import numpy as np
 
 from sparselt.fourier import fft
 from sparselt.provenance import package_versions
-from sparselt.recovery.sft import sft, sft_lattice
+from sparselt.recovery import sft, sft_lattice
 
 # the thesis's Table 6.1 (N = 6.5536e8, K = 65536): alpha -> (support, magnitude, total)
 THESIS_TABLE = {4: (553647600, 163577700, 717225300), 16: (1711275624, 654311268, 2365586892),

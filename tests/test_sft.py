@@ -6,16 +6,15 @@ import numpy as np
 import pytest
 
 from sparselt.fourier import fft
-from sparselt.recovery.sft import (
-    SparseFourierTransformResult,
-    _make_filter,
+from sparselt.recovery.lattice import (
     grid_to_lattice,
     lattice_generator,
     lattice_points,
     lattice_to_grid,
-    sft,
     sft_lattice,
 )
+from sparselt.recovery.sft import SparseFourierTransformResult, sft
+from sparselt.recovery.sft_filters import make_filter
 
 
 def sparse_signal(n, sparsity, seed, *, real=False, unit=False):
@@ -206,7 +205,7 @@ def test_same_seed_same_result():
 @pytest.mark.parametrize("window", ["chebyshev", "gaussian"])
 def test_filter_response_matches_the_direct_dft(n, bins, window):
     """Both evaluators (chirp-z table, Taylor expansion) equal the direct sum over the taps."""
-    filt = _make_filter(n, bins, 3.0, window, 1e-10)
+    filt = make_filter(n, bins, 3.0, window, 1e-10)
     taps = np.arange(-filt.half_width, filt.half_width + 1)
     offsets = np.unique(np.linspace(-filt.reach, filt.reach, 301).astype(np.int64))
     direct = (filt.taps[None, :] * np.exp(-2j * np.pi * np.outer(offsets, taps) / n)).sum(axis=1) / n

@@ -1,7 +1,6 @@
 """Hard thresholding, gamma mapping and the `analyze` experiment."""
 
 import csv
-import math
 
 import numpy as np
 import pytest

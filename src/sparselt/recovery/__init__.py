@@ -2,6 +2,7 @@
 
 from .cosamp import cosamp, omp
 from .result import RecoveryResult
-from .sft import SparseFourierTransformResult, sft, sft_lattice
+from .lattice import sft_lattice
+from .sft import SparseFourierTransformResult, sft
 
 __all__ = ["RecoveryResult", "SparseFourierTransformResult", "cosamp", "omp", "sft", "sft_lattice"]

@@ -5,7 +5,9 @@ signal that it can only *sample*: ``oracle(indices)`` returns ``x[indices]``
 (one rendered path per sample, so samples are the cost that matters). It reads
 a few thousand samples where a full FFT needs all ``n``. :func:`sft_lattice`
 does the same for a function on ``[0, 1)^D`` whose frequencies lie in a box,
-through the rank-1 lattice of eq. 6.1-6.2, without ever forming the grid.
+through the rank-1 lattice of eq. 6.1-6.2, without ever forming the grid
+(:mod:`sparselt.recovery.lattice`; the filters are in
+:mod:`sparselt.recovery.sft_filters`).
 
 Structure (the thesis's Algorithms 3-7, Hassanieh et al. 2012, Indyk, Kapralov
 and Price 2014):
@@ -25,7 +27,7 @@ and Price 2014):
    ``sum_f X[f] exp(2 pi i (f tau + p s) / n) T(h n / B - p)`` where ``s`` is
    a time shift of the window and ``T`` the filter's exact frequency
    response, evaluated without any length-``n`` transform (a chirp-z table
-   or a Taylor expansion from small FFTs, :class:`_Response`).
+   or a Taylor expansion from small FFTs, :class:`sparselt.recovery.sft_filters._Response`).
 4. **Location** (Algorithm 6, with decreasing phase ambiguity instead of a
    search). The same hash is read at shifts ``0, s_1, s_1 r, s_1 r^2, ...``:
    the phase of bin ``h`` at shift ``s`` against shift 0 is
@@ -80,6 +82,7 @@ import scipy.sparse
 from ..fourier import fft
 from ..fourier.sparse import SparseFourier
 from .result import RecoveryResult
+from .sft_filters import Filter, choose_bins, divisors, make_filter, random_coprime
 
 WINDOWS = ("chebyshev", "gaussian", "bspline")
 
@@ -272,207 +275,6 @@ class _SampleCache:
 
 
 # ---------------------------------------------------------------------------
-# number theory
-
-
-def _divisors(n):
-    factors = {}
-    remaining = n
-    candidate = 2
-    while candidate * candidate <= remaining:
-        while remaining % candidate == 0:
-            factors[candidate] = factors.get(candidate, 0) + 1
-            remaining //= candidate
-        candidate += 1 if candidate == 2 else 2
-    if remaining > 1:
-        factors[remaining] = factors.get(remaining, 0) + 1
-    divisors = np.array([1], dtype=np.int64)
-    for prime, power in factors.items():
-        divisors = (divisors[:, None] * prime ** np.arange(power + 1, dtype=np.int64)[None, :]).ravel()
-    return np.sort(divisors)
-
-
-def _choose_bins(divisors, target):
-    """The divisor of n nearest ``target`` on a log scale (``B`` must divide ``n``)."""
-    target = max(float(target), 1.0)
-    return int(divisors[np.argmin(np.abs(np.log(divisors / target)))])
-
-
-def _random_coprime(rng, n):
-    if n == 1:
-        return 1
-    while True:
-        sigma = int(rng.integers(1, n))
-        if math.gcd(sigma, n) == 1:
-            return sigma
-
-
-# ---------------------------------------------------------------------------
-# filters (thesis 2.3.4)
-
-
-class _Response:
-    """Exact frequency response ``T(d) = sum_j G[j] exp(-2 pi i j d / n) / Z`` of a symmetric filter, ``|d| <= reach``.
-
-    Two exact evaluators, whichever is cheaper to build: a table of every
-    integer offset (Bluestein's chirp-z transform, cost ``~ w + 2 reach``), or
-    a Taylor expansion in ``d`` around a coarse grid of step ``q = n / L``
-    whose coefficients are ``L``-point FFTs of the moments ``j^r G[j]``
-    (cost ``~ terms * L`` with ``L ~ pi w / 2``, independent of ``reach``).
-    Both agree with the direct sum to about 1e-15.
-    """
-
-    TERMS = 18
-
-    def __init__(self, taps, n, reach, divisors):
-        self.reach = int(reach)
-        half_width = (taps.size - 1) // 2
-        candidates = divisors[divisors >= math.pi * half_width]
-        grid = int(candidates[0]) if candidates.size else 0
-        table_cost = 3 * (1 << (2 * taps.size + 2 * self.reach).bit_length())
-        taylor_cost = self.TERMS * 2 * grid
-        if grid == 0 or table_cost <= taylor_cost:
-            table = _frequency_response(taps, n, self.reach).real
-            self.scale = table[self.reach]
-            self.table = table / self.scale
-            self.coefficients = None
-            return
-        self.table = None
-        self.step = n // grid
-        self.points = int(math.ceil(self.reach / self.step)) + 1
-        j = np.arange(-half_width, half_width + 1)
-        ratio = -2j * np.pi * j * self.step / (2 * n)  # |ratio| <= pi h / L <= 1
-        term = taps.astype(np.complex128)
-        rows = np.empty((self.TERMS, 2 * self.points + 1), dtype=np.complex128)
-        where = j % grid
-        keep = np.arange(-self.points, self.points + 1) % grid
-        for power in range(self.TERMS):
-            folded = np.bincount(where, term.real, grid) + 1j * np.bincount(where, term.imag, grid)
-            rows[power] = fft.fftn(folded)[keep]
-            term = term * ratio / (power + 1)
-        self.coefficients = rows
-        self.scale = 1.0
-        self.scale = float(self(np.zeros(1, dtype=np.int64))[0])
-        self.coefficients = rows / self.scale
-
-    def __call__(self, offset):
-        """``T(offset)`` for integer offsets (0 where ``|offset| > reach``)."""
-        offset = np.asarray(offset, dtype=np.int64)
-        inside = np.abs(offset) <= self.reach
-        if self.table is not None:
-            return np.where(inside, self.table[np.clip(offset + self.reach, 0, 2 * self.reach)], 0.0)
-        clipped = np.clip(offset, -self.reach, self.reach)
-        nearest = (clipped + self.step // 2) // self.step
-        fraction = (clipped - nearest * self.step) * (2.0 / self.step)
-        column = nearest + self.points
-        value = self.coefficients[-1, column]
-        for power in range(self.TERMS - 2, -1, -1):
-            value = value * fraction + self.coefficients[power, column]
-        return np.where(inside, value.real, 0.0)
-
-
-@dataclass(frozen=True)
-class _Filter:
-    bins: int
-    half_width: int  # taps at j = -half_width .. half_width
-    taps: np.ndarray  # scaled so a hash yields coefficients: bin = X[f] * phase * response
-    response: _Response  # T(d), T(0) = 1, zero beyond response.reach
-    neighbours: int  # bins on each side a frequency reaches
-
-    @property
-    def width(self):
-        return 2 * self.half_width + 1
-
-    @property
-    def gain(self):
-        """Noise energy per bin per unit of sample noise variance: ``sum_j taps[j]^2``."""
-        return float(np.sum(self.taps ** 2))
-
-    @property
-    def reach(self):
-        return self.response.reach
-
-
-def _chebyshev_window(length, leakage):
-    """Dolph-Chebyshev window of odd ``length`` with side lobes at ``leakage`` (relative)."""
-    order = length - 1
-    beta = np.cosh(np.arccosh(1.0 / leakage) / order)
-    x = beta * np.cos(np.pi * np.arange(length) / length)
-    p = np.empty(length)
-    above, below, inside = x > 1, x < -1, np.abs(x) <= 1
-    p[above] = np.cosh(order * np.arccosh(x[above]))
-    p[below] = np.cosh(order * np.arccosh(-x[below]))  # (-1)^order with order even
-    p[inside] = np.cos(order * np.arccos(x[inside]))
-    spectrum = np.real(fft.fftn(p))
-    half = (length + 1) // 2
-    window = np.concatenate((spectrum[half - 1:0:-1], spectrum[:half]))
-    return window / window.max()
-
-
-def _bspline_window(half_width, boxes):
-    """The thesis's flat-window base (2.3.4): a box convolved ``boxes`` times (a B-spline), support ``2 h + 1``."""
-    from scipy.interpolate import BSpline
-
-    knots = np.linspace(-half_width - 1, half_width + 1, boxes + 1)
-    window = BSpline.basis_element(knots, extrapolate=False)(np.arange(-half_width, half_width + 1))
-    window = np.nan_to_num(window)
-    return window / window.max()
-
-
-def _frequency_response(taps, n, reach):
-    """``sum_j taps[j] exp(-2 pi i j d / n)`` for ``d = -reach .. reach`` (taps at ``j = -h .. h``).
-
-    Bluestein's chirp-z transform: ``j d = (j^2 + d^2 - (d - j)^2) / 2`` turns
-    the sum into a convolution, so the table costs one FFT of about
-    ``2 w + 2 reach`` points instead of a length-``n`` transform.
-    """
-    h = (taps.size - 1) // 2
-
-    def chirp(m):  # exp(i pi m^2 / n), with m^2 reduced exactly modulo 2n
-        m = np.asarray(m, dtype=np.int64)
-        return np.exp(1j * np.pi * ((m * m) % (2 * n)) / n)
-
-    j = np.arange(-h, h + 1)
-    a = taps * np.conj(chirp(j))
-    c = chirp(np.arange(-(reach + h), reach + h + 1))
-    length = a.size + c.size - 1
-    size = 1 << (length - 1).bit_length()
-    product = fft.ifftn(fft.fftn(np.pad(a, (0, size - a.size))) * fft.fftn(np.pad(c, (0, size - c.size))))
-    d = np.arange(-reach, reach + 1)
-    return np.conj(chirp(d)) * product[2 * h: 2 * h + 2 * reach + 1]
-
-
-def _make_filter(n, bins, width, window, leakage, divisors=None):
-    """Flat window for ``bins`` bins: base window times a Dirichlet kernel one bin wide (2.3.4)."""
-    half_width = max(1, int(round(width * bins / 2)))
-    half_width = min(half_width, (n - 1) // 2)
-    j = np.arange(-half_width, half_width + 1)
-    passband = n // (2 * bins)  # frequencies -passband .. passband: one bin of n / B
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dirichlet = np.sin(np.pi * (2 * passband + 1) * j / n) / np.sin(np.pi * j / n)
-    dirichlet[half_width] = 2 * passband + 1
-    log_leakage = math.log(1.0 / leakage)
-    if window == "gaussian":
-        sigma = half_width / math.sqrt(2 * log_leakage)
-        base = np.exp(-0.5 * (j / sigma) ** 2)
-        lobe = 1.1 * log_leakage * n / (math.pi * half_width)
-    elif window == "chebyshev":
-        base = _chebyshev_window(j.size, leakage)
-        lobe = 1.2 * math.log(2.0 / leakage) * n / (2 * math.pi * half_width)
-    else:
-        boxes = int(min(12, max(2, 2 * round(log_leakage / 2 / math.log(10) * 1.0))))
-        base = _bspline_window(half_width, boxes)
-        first_null = n * boxes / (2 * half_width + 2)
-        lobe = first_null * max(1.0, leakage ** (-1.0 / boxes) / math.pi)
-    reach = int(min(passband + math.ceil(lobe), (n - 1) // 2))
-    taps = base * dirichlet
-    response = _Response(taps, n, reach, _divisors(n) if divisors is None else divisors)
-    taps = taps * (n / response.scale)
-    neighbours = int(math.ceil(reach * bins / n + 0.5))
-    return _Filter(bins, half_width, taps, response, neighbours)
-
-
-# ---------------------------------------------------------------------------
 # hashing
 
 
@@ -508,7 +310,7 @@ def _window_cost(shifts, half_width):
 class _Hash:
     sigma: int
     tau: int
-    filter: _Filter
+    filter: Filter
     shifts: np.ndarray
     bins: np.ndarray  # (S, B): bin values, in coefficient units
 
@@ -859,13 +661,13 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
 
     cache = _SampleCache(oracle, n)
     timing = {"setup": 0.0, "support": 0.0, "magnitude": 0.0}
-    divisors = _divisors(n)
+    divisors_of_n = divisors(n)
     filters = {}
 
     def get_filter(bins):
         if bins not in filters:
             start = time.perf_counter()
-            filters[bins] = _make_filter(n, bins, width, window, leakage, divisors)
+            filters[bins] = make_filter(n, bins, width, window, leakage, divisors_of_n)
             timing["setup"] += time.perf_counter() - start
         return filters[bins]
 
@@ -899,8 +701,8 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
         return finish(keep.astype(np.int64), spectrum[keep], history, iterations, "dense", hashes, transforms=1)
 
     start = time.perf_counter()
-    usable = divisors[(divisors >= MINIMUM_BINS) & (divisors <= n // 4)]  # bins a hash may have
-    first_bins = _choose_bins(usable, alpha * sparsity) if usable.size else 0
+    usable = divisors_of_n[(divisors_of_n >= MINIMUM_BINS) & (divisors_of_n <= n // 4)]  # bins a hash may have
+    first_bins = choose_bins(usable, alpha * sparsity) if usable.size else 0
     first_shifts = _shift_schedule(n, first_bins, phase_error, shift_ratio)
     first_cost = _window_cost(first_shifts, max(1, int(round(width * first_bins / 2))))
     first_width = 2 * max(1, int(round(width * first_bins / 2))) + 1
@@ -921,13 +723,13 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
     for iterations in range(1, max_iterations + 1):
         remaining = max(sparsity - frequencies.size, rejected, 1)
         least = max(BINS_FLOOR * first_bins, BIN_SNR * sparsity / snr_linear)
-        bins = _choose_bins(usable, max(alpha * remaining, least))
+        bins = choose_bins(usable, max(alpha * remaining, least))
         filt = get_filter(bins)
         shifts = _shift_schedule(n, bins, phase_error, shift_ratio)
         if cache.count + _window_cost(shifts, filt.half_width) >= dense_fraction * n:
             charge("support", start, setup_before, oracle_before)
             return dense(history, iterations, hashes)
-        sigma, tau = _random_coprime(rng, n), int(rng.integers(n))
+        sigma, tau = random_coprime(rng, n), int(rng.integers(n))
         hashed = _hash_to_bins(cache, n, filt, sigma, tau, shifts)
         hashes.append(hashed)
         residual = hashed.bins - _model(n, hashed, frequencies, values)
@@ -975,12 +777,12 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
         keep = np.sort(np.argsort(-np.abs(values), kind="stable")[:sparsity])
         frequencies, values = frequencies[keep], values[keep]
     if frequencies.size:
-        full = _choose_bins(usable, alpha * frequencies.size)
+        full = choose_bins(usable, alpha * frequencies.size)
         filt = get_filter(full)
         for _ in range(magnitude_hashes):
             if cache.count + filt.width >= dense_fraction * n:
                 break
-            hashed = _hash_to_bins(cache, n, filt, _random_coprime(rng, n), int(rng.integers(n)), np.zeros(1, np.int64))
+            hashed = _hash_to_bins(cache, n, filt, random_coprime(rng, n), int(rng.integers(n)), np.zeros(1, np.int64))
             hashes.append(hashed)
         large = [hashed for hashed in hashes if hashed.filter.bins >= full / 2]
         median = len(large) >= 3
@@ -996,157 +798,3 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
         values = _polish(n, hashes, frequencies, values, scale, robust_start=median, variance=variance)[0]
     charge("magnitude", start, setup_before, oracle_before)
     return finish(frequencies, values, history, iterations, reason, hashes)
-
-
-# ---------------------------------------------------------------------------
-# rank-1 lattice reduction (thesis 6.1.1, eq. 6.1-6.2)
-
-
-def _check_shape(shape):
-    try:
-        shape = tuple(int(size) for size in shape)
-    except TypeError:
-        raise ValueError(f"shape must be a sequence of positive integers, got {shape!r}") from None
-    if not shape or any(size <= 0 for size in shape):
-        raise ValueError(f"shape must be a non-empty sequence of positive integers, got {shape!r}")
-    return shape
-
-
-def _lowest(shape, lowest):
-    if lowest is None:
-        return tuple(-(size // 2) for size in shape)
-    lowest = tuple(int(value) for value in np.atleast_1d(lowest))
-    if len(lowest) != len(shape):
-        raise ValueError(f"lowest must give one frequency per axis ({len(shape)}), got {lowest}")
-    return lowest
-
-
-def lattice_generator(shape):
-    """Generating vector ``g = (1, s0, s0 s1, ...)`` of the rank-1 lattice (thesis eq. 6.1)."""
-    shape = _check_shape(shape)
-    return np.concatenate(([1], np.cumprod(shape[:-1], dtype=np.int64))).astype(np.int64)
-
-
-def lattice_points(shape, indices):
-    """Lattice points ``x_j = (j g mod N) / N`` in ``[0, 1)^D`` for the given ``j`` (eq. 6.1), shape ``(m, D)``."""
-    shape = _check_shape(shape)
-    size = int(np.prod(shape, dtype=np.int64))
-    indices = np.asarray(indices, dtype=np.int64)
-    return ((indices[:, None] * lattice_generator(shape)[None, :]) % size) / size
-
-
-def lattice_to_grid(shape, indices, lowest=None):
-    """Grid spectrum index of each lattice frequency: the bijection of eq. 6.2.
-
-    A frequency ``k`` of the box ``lowest <= k < lowest + shape`` appears on
-    the lattice at ``l = sum_d k_d g_d mod N``; ``l - sum_d lowest_d g_d``
-    has the mixed-radix digits ``k_d - lowest_d`` (eq. 6.2). This returns,
-    for 1-D indices ``l``, the flat C-order index of ``k mod shape`` in the
-    ``numpy.fft.fftn`` grid of ``shape``.
-
-    Parameters
-    ----------
-    shape : sequence of int
-        The grid (and frequency box) shape ``(s_0, ..., s_{D-1})``.
-    indices : array_like of int
-        Lattice (1-D) frequencies in ``[0, N)``.
-    lowest : sequence of int, optional
-        Lowest frequency of the box on each axis; default ``-(s_d // 2)``,
-        the box of ``numpy.fft.fftfreq(s_d) * s_d``.
-    """
-    shape = _check_shape(shape)
-    lowest = _lowest(shape, lowest)
-    size = int(np.prod(shape, dtype=np.int64))
-    generator = lattice_generator(shape)
-    base = int(np.dot(np.asarray(lowest, dtype=np.int64), generator)) % size
-    digits = (np.asarray(indices, dtype=np.int64) - base) % size
-    coordinates = []
-    for axis, extent in enumerate(shape):
-        coordinates.append((digits // generator[axis] % extent + lowest[axis]) % extent)
-    return np.ravel_multi_index(tuple(coordinates), shape).astype(np.int64)
-
-
-def grid_to_lattice(shape, indices, lowest=None):
-    """Inverse of :func:`lattice_to_grid`: lattice frequency of each flat grid spectrum index."""
-    shape = _check_shape(shape)
-    lowest = _lowest(shape, lowest)
-    size = int(np.prod(shape, dtype=np.int64))
-    generator = lattice_generator(shape)
-    coordinates = np.unravel_index(np.asarray(indices, dtype=np.int64), shape)
-    total = np.zeros(np.shape(indices), dtype=np.int64)
-    for axis, extent in enumerate(shape):
-        frequency = (coordinates[axis] - lowest[axis]) % extent + lowest[axis]  # k in the box
-        total = total + frequency * generator[axis]
-    return total % size
-
-
-def sft_lattice(function, shape, sparsity, *, lowest=None, **options):
-    """Sparse Fourier Transform of a function on ``[0, 1)^D`` by rank-1 lattice reduction (thesis 6.1.1).
-
-    Parameters
-    ----------
-    function : callable
-        ``function(points) -> values`` for an ``(m, D)`` array of points in
-        ``[0, 1)^D``; one finite real or complex value per point.
-    shape : sequence of int
-        The frequency box (and grid) ``(s_0, ..., s_{D-1})``; ``N = prod(shape)``
-        must be below ``2**31``.
-    sparsity : int
-        ``K``, coefficients to recover, ``0 < K <= N / 2``.
-    lowest : sequence of int, optional
-        Lowest frequency of the box per axis, default ``-(s_d // 2)`` (the
-        frequencies of ``numpy.fft.fftn`` on the grid); use zeros for
-        ``0 <= k < shape``.
-    **options
-        Passed to :func:`sft` (``alpha``, ``snr``, ``seed``, ...).
-
-    Returns
-    -------
-    SparseFourierTransformResult
-        As :func:`sft`, with ``.estimate`` a SparseFourier of shape ``shape``:
-        ``estimate.to_signal()`` is the function on the grid ``m / shape``.
-
-    Raises
-    ------
-    ValueError
-        A shape with a zero or negative size, and every error of :func:`sft`.
-
-    Notes
-    -----
-    The samples ``y[j] = f(x_j)``, ``x_j = (j g mod N) / N``,
-    ``g = (1, s_0, s_0 s_1, ...)`` (eq. 6.1), make each term
-    ``c_k exp(2 pi i k.x)`` of a trigonometric polynomial the 1-D frequency
-    ``l = k.g mod N``: distinct for distinct ``k`` in the box (mixed radix,
-    eq. 6.2). The length-``N`` DFT of ``y`` has ``N c_k`` at ``l``, which is
-    also the ``numpy.fft.fftn`` coefficient of ``f`` on the grid at
-    ``k mod shape``. Only the lattice points the 1-D transform asks for are
-    evaluated.
-
-    References
-    ----------
-    Thesis 6.1.1, eq. 6.1-6.2; L. Kämmerer, D. Potts, T. Volkmer,
-    "High-dimensional sparse FFT based on sampling along multiple rank-1
-    lattices", Appl. Comput. Harmon. Anal. 2021.
-    """
-    shape = _check_shape(shape)
-    lowest = _lowest(shape, lowest)
-    size = int(np.prod(shape, dtype=np.int64))
-    if not callable(function):
-        raise ValueError(f"function must be callable as function(points) -> values, got {type(function).__name__}")
-
-    def oracle(indices):
-        values = np.asarray(function(lattice_points(shape, indices)))
-        if values.shape not in ((indices.size,), (indices.size, 1)):
-            raise ValueError(f"the function must return one value per point: {indices.size} points, "
-                             f"got an array of shape {values.shape}")
-        return values.reshape(indices.size)
-
-    result = sft(oracle, size, sparsity, **options)
-    line = result.estimate
-    grid = SparseFourier(shape, lattice_to_grid(shape, line.indices, lowest), line.values)
-    parameters = dict(result.parameters, shape=shape, lowest=lowest)
-    return SparseFourierTransformResult(
-        estimate=grid, residual_history=result.residual_history, iterations=result.iterations,
-        samples=result.samples, time=result.time, stop_reason=result.stop_reason, transforms=result.transforms,
-        support_samples=result.support_samples, magnitude_samples=result.magnitude_samples, bins=result.bins,
-        parameters=parameters)
