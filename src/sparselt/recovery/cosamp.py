@@ -87,6 +87,13 @@ def _top_entries(energy, count):
     return np.argpartition(energy, size - count)[size - count:]
 
 
+def _sorted_union(first, second):
+    """Sorted distinct entries of two index arrays (a sort, not numpy's hash-based unique: faster here)."""
+    merged = np.concatenate([first, second])
+    merged.sort()
+    return merged[np.concatenate([[True], merged[1:] != merged[:-1]])] if merged.size else merged
+
+
 class _Clock:
     def __init__(self, phases):
         self.time = {phase: 0.0 for phase in phases}
@@ -179,7 +186,7 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
         spectrum = operator.transform_samples(residual)
         energy = operator.proxy_energy(spectrum)
         start = clock("proxy", start)
-        merged = np.union1d(_largest(energy, 2 * sparsity, operator), support)
+        merged = _sorted_union(_largest(energy, 2 * sparsity, operator), support)
         start = clock("select", start)
         warm = np.zeros(merged.size, dtype=operator.coefficient_dtype)
         warm[np.searchsorted(merged, support)] = values
@@ -239,7 +246,7 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50):
         energy[support] = 0.0
         start = clock("proxy", start)
         chosen = int(np.argmax(energy))
-        merged = np.union1d(support, [chosen])
+        merged = _sorted_union(support, np.array([chosen]))
         start = clock("select", start)
         warm = np.zeros(merged.size, dtype=operator.coefficient_dtype)
         warm[np.searchsorted(merged, support)] = values
