@@ -23,7 +23,8 @@ import numpy as np
 from . import fft
 
 
-def _as_shape(shape):
+def check_shape(shape):
+    """A shape as a tuple of positive ints, or a ValueError saying what is allowed."""
     try:
         shape = tuple(int(size) for size in shape)
     except TypeError:
@@ -35,7 +36,7 @@ def _as_shape(shape):
 
 def partner_indices(shape, indices):
     """Flat index of ``-k mod shape`` for each flat index ``k`` (the Hermitian partner)."""
-    shape = _as_shape(shape)
+    shape = check_shape(shape)
     coordinates = np.unravel_index(np.asarray(indices, dtype=np.int64), shape)
     negated = tuple((-coordinate) % size for coordinate, size in zip(coordinates, shape))
     return np.ravel_multi_index(negated, shape).astype(np.int64)
@@ -64,7 +65,7 @@ class SparseFourier:
     """
 
     def __init__(self, shape, indices, values, *, real=False, tolerance=1e-4):
-        self.shape = _as_shape(shape)
+        self.shape = check_shape(shape)
         self.size = int(np.prod(self.shape, dtype=np.int64))
         indices = np.asarray(indices)
         if indices.ndim != 1 or (indices.size and not np.issubdtype(indices.dtype, np.integer)):

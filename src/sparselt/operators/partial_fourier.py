@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from ..fourier import fft
-from ..fourier.sparse import SparseFourier
+from ..fourier.sparse import SparseFourier, check_shape
 from .base import LinearOperator
 
 DTYPES = {np.dtype(np.float32): np.dtype(np.complex64), np.dtype(np.float64): np.dtype(np.complex128)}
@@ -92,12 +92,7 @@ class PartialFourier(LinearOperator):
     """
 
     def __init__(self, shape, indices, *, real=True, dtype=np.float32, threads=None):
-        try:
-            self.grid_shape = tuple(int(size) for size in shape)
-        except TypeError:
-            raise ValueError(f"shape must be a sequence of positive integers, got {shape!r}") from None
-        if not self.grid_shape or any(size <= 0 for size in self.grid_shape):
-            raise ValueError(f"shape must be a non-empty sequence of positive integers, got {shape!r}")
+        self.grid_shape = check_shape(shape)
         dtype = np.dtype(dtype)
         if dtype not in DTYPES:
             raise ValueError(f"dtype must be float32 or float64, got {dtype}")

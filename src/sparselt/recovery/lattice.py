@@ -11,21 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fourier.sparse import SparseFourier
+from ..fourier.sparse import SparseFourier, check_shape
 from .sft import SparseFourierTransformResult, sft
 
 # ---------------------------------------------------------------------------
 # rank-1 lattice reduction (thesis 6.1.1, eq. 6.1-6.2)
-
-
-def _check_shape(shape):
-    try:
-        shape = tuple(int(size) for size in shape)
-    except TypeError:
-        raise ValueError(f"shape must be a sequence of positive integers, got {shape!r}") from None
-    if not shape or any(size <= 0 for size in shape):
-        raise ValueError(f"shape must be a non-empty sequence of positive integers, got {shape!r}")
-    return shape
 
 
 def _lowest(shape, lowest):
@@ -39,13 +29,13 @@ def _lowest(shape, lowest):
 
 def lattice_generator(shape):
     """Generating vector ``g = (1, s0, s0 s1, ...)`` of the rank-1 lattice (thesis eq. 6.1)."""
-    shape = _check_shape(shape)
+    shape = check_shape(shape)
     return np.concatenate(([1], np.cumprod(shape[:-1], dtype=np.int64))).astype(np.int64)
 
 
 def lattice_points(shape, indices):
     """Lattice points ``x_j = (j g mod N) / N`` in ``[0, 1)^D`` for the given ``j`` (eq. 6.1), shape ``(m, D)``."""
-    shape = _check_shape(shape)
+    shape = check_shape(shape)
     size = int(np.prod(shape, dtype=np.int64))
     indices = np.asarray(indices, dtype=np.int64)
     return ((indices[:, None] * lattice_generator(shape)[None, :]) % size) / size
@@ -70,7 +60,7 @@ def lattice_to_grid(shape, indices, lowest=None):
         Lowest frequency of the box on each axis; default ``-(s_d // 2)``,
         the box of ``numpy.fft.fftfreq(s_d) * s_d``.
     """
-    shape = _check_shape(shape)
+    shape = check_shape(shape)
     lowest = _lowest(shape, lowest)
     size = int(np.prod(shape, dtype=np.int64))
     generator = lattice_generator(shape)
@@ -84,7 +74,7 @@ def lattice_to_grid(shape, indices, lowest=None):
 
 def grid_to_lattice(shape, indices, lowest=None):
     """Inverse of :func:`lattice_to_grid`: lattice frequency of each flat grid spectrum index."""
-    shape = _check_shape(shape)
+    shape = check_shape(shape)
     lowest = _lowest(shape, lowest)
     size = int(np.prod(shape, dtype=np.int64))
     generator = lattice_generator(shape)
@@ -144,7 +134,7 @@ def sft_lattice(function, shape, sparsity, *, lowest=None, **options):
     "High-dimensional sparse FFT based on sampling along multiple rank-1
     lattices", Appl. Comput. Harmon. Anal. 2021.
     """
-    shape = _check_shape(shape)
+    shape = check_shape(shape)
     lowest = _lowest(shape, lowest)
     size = int(np.prod(shape, dtype=np.int64))
     if not callable(function):
