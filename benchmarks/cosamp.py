@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from sparselt.fourier import fft
-from sparselt.memory import reset_peak, status_bytes
+from sparselt.measurement import reset_peak, status_bytes
 from sparselt.fourier.sparse import SparseFourier
 from sparselt.operators import PartialFourier
 from sparselt.recovery.cosamp import cosamp

@@ -9,22 +9,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 
 import numpy as np
 import scipy.fft
 
 from sparselt.fourier import fft
-
-
-def best(function, repeats):
-    function()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
+from sparselt.measurement import best_time
 
 
 def main():
@@ -45,9 +35,9 @@ def main():
             ("complex forward", lambda: fft.fftn(complex_), lambda: scipy.fft.fftn(complex_, workers=workers), lambda: np.fft.fftn(complex_)),
         ]
         for name, ours, scipy_version, numpy_version in cases:
-            ducc = best(ours, arguments.repeats)
-            sci = best(scipy_version, arguments.repeats)
-            num = best(numpy_version, max(1, arguments.repeats // 2))
+            ducc = best_time(ours, arguments.repeats)
+            sci = best_time(scipy_version, arguments.repeats)
+            num = best_time(numpy_version, max(1, arguments.repeats // 2))
             print(f"{name + ' ' + np.dtype(dtype).name:28s} {ducc * 1e3:9.1f} {sci * 1e3:9.1f} {num * 1e3:9.1f} {sci / ducc:12.2f}")
 
 

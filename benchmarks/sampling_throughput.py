@@ -16,21 +16,11 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import time
 
+from sparselt.measurement import best_time
 from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.layout import path_layout
 from sparselt.rendering.scenes import get_scene
-
-
-def measure(function, repeats):
-    function()  # compile
-    best = math.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def main():
@@ -51,14 +41,14 @@ def main():
         for kind in ("path", "dof", "indirect"):
             camera_spec = spec.with_lens(0.05, 4.0) if kind == "dof" and not spec.camera.thin_lens else spec
             scene = mitsuba_backend.MitsubaScene(camera_spec, (width, width))
-            native = measure(lambda: scene.render_path(arguments.spp, arguments.max_depth, seed=1), arguments.repeats)
+            native = best_time(lambda: scene.render_path(arguments.spp, arguments.max_depth, seed=1), arguments.repeats)
             layout = path_layout(kind, arguments.max_depth, thin_lens=scene.camera.thin_lens)
             extra_axes = len(layout.axes) - 2
             per_axis = max(1, round((arguments.spp / 16) ** (1 / extra_axes))) if extra_axes else 1
             shape = (width, width) + (per_axis,) * extra_axes
             cells = math.prod(shape)
             spp = max(1, samples // cells)
-            ours = measure(lambda: scene.sample_cells(layout, shape, 0, cells, spp, 1), arguments.repeats)
+            ours = best_time(lambda: scene.sample_cells(layout, shape, 0, cells, spp, 1), arguments.repeats)
             native_rate = samples / native
             our_rate = cells * spp / ours
             print(f"{name:18s} {kind:14s} {len(layout.axes):4d} {native_rate / 1e6:12.2f} {our_rate / 1e6:10.2f} "

@@ -44,6 +44,7 @@ import time
 import numpy as np
 
 from sparselt.fourier import fft
+from sparselt.measurement import best_time
 from sparselt.provenance import package_versions
 from sparselt.recovery import sft, sft_lattice
 
@@ -70,24 +71,15 @@ def make_signal(n, sparsity, snr, seed):
     return support, signal
 
 
-def best_time(function, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
-
-
 def run_case(name, log2, sparsity, snr, arguments):
     n = 1 << log2
     support, signal = make_signal(n, sparsity, snr, seed=1000 + log2)
-    fft_time = best_time(lambda: fft.fftn(signal), arguments.repeats)
+    fft_time = best_time(lambda: fft.fftn(signal), arguments.repeats, warmup=False)
     everything = np.arange(n, dtype=np.int64)
-    oracle_time = best_time(lambda: signal[everything], arguments.repeats)
+    oracle_time = best_time(lambda: signal[everything], arguments.repeats, warmup=False)
     del everything
     options = dict(snr=np.inf if snr is None else snr)
-    sft_time = best_time(lambda: sft(lambda indices: signal[indices], n, sparsity, seed=0, **options), arguments.repeats)
+    sft_time = best_time(lambda: sft(lambda indices: signal[indices], n, sparsity, seed=0, **options), arguments.repeats, warmup=False)
     samples, missed, support_samples, magnitude_samples, times = [], [], [], [], []
     for seed in range(arguments.seeds):
         start = time.perf_counter()

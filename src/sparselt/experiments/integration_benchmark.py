@@ -71,7 +71,7 @@ import numpy as np
 
 from ..fourier.integration import METHODS, integrate
 from ..fourier.sparse import SparseFourier
-from ..memory import reset_peak, status_bytes
+from ..measurement import reset_peak, status_bytes
 from ..provenance import atomic_write_bytes, check_output_folder, environment_record, write_json
 
 DEFAULT_SIZES = (32, 48, 64, 96, 128)

@@ -1,6 +1,23 @@
-"""Process memory readings for benchmarks (Linux ``/proc/self``)."""
+"""Measuring for benchmarks: best-of wall time, process memory (Linux ``/proc/self``)."""
 
 from __future__ import annotations
+
+import time
+
+
+def best_time(function, repeats, *, warmup=True):
+    """Smallest wall time of ``repeats`` calls of ``function()`` (seconds), after one untimed call.
+
+    The warm-up absorbs one-off costs (JIT compilation, FFT plans, page faults).
+    """
+    if warmup:
+        function()
+    best = float("inf")
+    for _ in range(max(1, int(repeats))):
+        start = time.perf_counter()
+        function()
+        best = min(best, time.perf_counter() - start)
+    return best
 
 
 def status_bytes(field_name):
