@@ -25,6 +25,8 @@ demo: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/sampling_throughput.py
 	$(BIN)/python benchmarks/fft_backends.py
+	$(BIN)/python benchmarks/cosamp.py
+	$(BIN)/python benchmarks/sft.py
 	$(BIN)/sparselt bench integrate --out out/bench-integrate --overwrite
 
 clean:
