@@ -15,11 +15,12 @@ import math
 import numpy as np
 
 from ..fourier import fft
-from ..fourier.integration import integrate
+from ..fourier.integration import integrate, mean_over_axes
 from ..fourier.sparse import SparseFourier, partner_indices
 
 
-def _check_gamma(gamma):
+def check_gamma(gamma):
+    """Validate a gamma of eq. 7.1: a positive finite number."""
     if isinstance(gamma, bool) or not isinstance(gamma, (int, float, np.floating)) or not (gamma > 0 and math.isfinite(gamma)):
         raise ValueError(f"gamma must be a positive finite number (eq. 7.1 uses 0 < gamma <= 1), got {gamma!r}")
     return float(gamma)
@@ -55,7 +56,7 @@ def gamma_map(signal, gamma, *, maximum=None):
     ValueError
         gamma <= 0, negative or non-finite values.
     """
-    gamma = _check_gamma(gamma)
+    gamma = check_gamma(gamma)
     signal = np.asarray(signal)
     if not np.all(np.isfinite(signal)) or signal.size and signal.min() < 0:
         raise ValueError("gamma mapping needs finite non-negative values")
@@ -71,7 +72,7 @@ def inverse_gamma_map(mapped, gamma, maximum):
     Values below zero (a thresholded reconstruction can undershoot) are
     clipped to zero first, since ``T ** (1 / gamma)`` is undefined there.
     """
-    gamma = _check_gamma(gamma)
+    gamma = check_gamma(gamma)
     return float(maximum) * np.clip(mapped, 0.0, None) ** (1.0 / gamma)
 
 
@@ -118,7 +119,7 @@ def hard_threshold_image(data, fraction, *, gamma=1.0, keep_axes=(0, 1)):
     clipped to 0) and averaged (thesis 7.1.1).
     """
     fraction = check_fraction(fraction)
-    gamma = _check_gamma(gamma)
+    gamma = check_gamma(gamma)
     data = np.asarray(data)
     grid = data.shape[:-1]
     axes = tuple(range(len(grid)))
@@ -136,8 +137,5 @@ def hard_threshold_image(data, fraction, *, gamma=1.0, keep_axes=(0, 1)):
             channels.append(integrate(representation, keep_axes, "convolution"))
         else:
             reconstruction = inverse_gamma_map(representation.to_signal(), gamma, maximum)
-            integrated = tuple(axis for axis in axes if axis not in tuple(a % len(grid) for a in keep_axes))
-            mean = reconstruction.mean(axis=integrated) if integrated else reconstruction
-            ranks = list(np.argsort(np.argsort([a % len(grid) for a in keep_axes])))
-            channels.append(np.transpose(mean, ranks))
+            channels.append(mean_over_axes(reconstruction, keep_axes))
     return np.stack(channels, axis=-1)

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..analysis.metrics import image_ssim, peak_signal_to_noise_ratio, reference_exposure
 from ..analysis.sparsity import signal_gini
-from ..analysis.threshold import check_fraction, gamma_map, hard_threshold_image
+from ..analysis.threshold import check_fraction, check_gamma, gamma_map, hard_threshold_image
 from ..images import save_figure, srgb_tonemap
 from ..provenance import atomic_write_bytes, environment_record, write_json
 from ..signal import Signal
@@ -48,10 +48,7 @@ def _check_gammas(gammas):
     gammas = tuple(gammas)
     if not gammas:
         raise ValueError("give at least one gamma")
-    for gamma in gammas:
-        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not (gamma > 0 and math.isfinite(gamma)):
-            raise ValueError(f"gamma must be a positive finite number, got {gamma!r}")
-    return tuple(float(gamma) for gamma in gammas)
+    return tuple(check_gamma(gamma) for gamma in gammas)
 
 
 def _mapped_signal(signal, gamma):

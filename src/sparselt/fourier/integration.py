@@ -40,8 +40,7 @@ from .sparse import SparseFourier
 METHODS = ("sum", "time", "time-fft", "convolution")
 
 
-def _split_axes(representation, keep_axes):
-    dimensions = len(representation.shape)
+def _split_axes(dimensions, keep_axes):
     try:
         keep = tuple(int(axis) for axis in keep_axes)
     except (TypeError, ValueError):
@@ -104,16 +103,25 @@ def integrate(representation, keep_axes=(0, 1), method="convolution", *, chunk=N
         raise TypeError(f"integrate needs a SparseFourier, got {type(representation).__name__}")
     if method not in METHODS:
         raise ValueError(f"unknown integration method {method!r}; choose one of {', '.join(METHODS)}")
-    keep, integrated = _split_axes(representation, keep_axes)
+    keep, integrated = _split_axes(len(representation.shape), keep_axes)
     function = {"sum": _sum, "time": _time, "time-fft": _time_fft, "convolution": _convolution}[method]
     result = function(representation, keep, integrated, chunk) if method == "time" else function(representation, keep, integrated)
     return np.array(result.real) if representation.real else np.asarray(result)
 
 
+def mean_over_axes(signal, keep_axes=(0, 1), *, dimensions=None):
+    """Mean of a dense grid signal over every axis not in ``keep_axes`` (the direct sum, eq. 4.1).
+
+    The result's axes are ``keep_axes`` in that order, then any trailing
+    channel axes beyond the first ``dimensions`` (default: all axes are grid axes).
+    """
+    signal = np.asarray(signal)
+    keep, integrated = _split_axes(signal.ndim if dimensions is None else dimensions, keep_axes)
+    return _in_keep_order(signal.mean(axis=integrated) if integrated else signal, keep)
+
+
 def _sum(representation, keep, integrated):
-    signal = representation.to_signal()
-    mean = signal.mean(axis=integrated) if integrated else signal
-    return _in_keep_order(mean, keep)
+    return mean_over_axes(representation.to_signal(), keep, dimensions=len(representation.shape))
 
 
 def _in_keep_order(array, keep):
@@ -135,7 +143,7 @@ def _time(representation, keep, integrated, chunk):
     values = representation.values.reshape(representation.sparsity, -1)
     points = int(np.prod(output_shape, dtype=np.int64))
     chunk = chunk or max(1, (1 << 20) // max(1, points))
-    result = np.zeros((int(np.prod(output_shape, dtype=np.int64)), values.shape[1]), dtype=np.complex128)
+    result = np.zeros((points, values.shape[1]), dtype=np.complex128)
     weights = {axis: period_mean_weights(shape[axis]) for axis in integrated}
     for start in range(0, representation.sparsity, chunk):
         coordinates = np.stack(np.unravel_index(representation.indices[start:start + chunk], shape), axis=1)

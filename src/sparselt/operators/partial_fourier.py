@@ -169,10 +169,7 @@ class PartialFourier(LinearOperator):
         if support is self._weights_support:
             return self._weights_cache
         size = self.size
-        in_plane = self._plane_of_last[support % self.coefficient_shape[-1]]
-        selfconjugate = np.zeros(support.size, dtype=bool)
-        if in_plane.any():
-            selfconjugate[in_plane] = np.isin(support[in_plane], self._selfconjugate)
+        in_plane, selfconjugate = self._classify(support)
         analysis = np.where(selfconjugate, 1.0 / math.sqrt(size), math.sqrt(2.0 / size)).astype(self.sample_dtype)
         # c2r counts an interior entry twice (its mirror is implicit) and a plane entry once.
         synthesis = np.where(selfconjugate, math.sqrt(size), np.where(in_plane, math.sqrt(2.0 * size), math.sqrt(size / 2.0)))
@@ -184,9 +181,16 @@ class PartialFourier(LinearOperator):
         """How many full-spectrum coefficients each entry of ``support`` stands for (1 or 2)."""
         if not self.real:
             return np.ones(np.size(support), dtype=np.int64)
-        in_plane = self._plane_of_last[np.asarray(support) % self.coefficient_shape[-1]]
-        selfconjugate = np.isin(support, self._selfconjugate) & in_plane
+        _, selfconjugate = self._classify(np.asarray(support))
         return np.where(selfconjugate, 1, 2)
+
+    def _classify(self, support):
+        """Masks of the entries of ``support`` in the planes j = 0, n/2 and of the self-conjugate ones."""
+        in_plane = self._plane_of_last[support % self.coefficient_shape[-1]]
+        selfconjugate = np.zeros(support.size, dtype=bool)
+        if in_plane.any():
+            selfconjugate[in_plane] = np.isin(support[in_plane], self._selfconjugate)
+        return in_plane, selfconjugate
 
     # -- the operator on a support --------------------------------------------
 

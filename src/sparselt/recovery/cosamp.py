@@ -79,7 +79,8 @@ def _top_entries(energy, count):
         stride = 31
         subsample = energy[::stride]
         keep_fraction = min(1.0, 1.5 * count / size + 20.0 / subsample.size)
-        threshold = np.partition(subsample, int((1.0 - keep_fraction) * (subsample.size - 1)))[int((1.0 - keep_fraction) * (subsample.size - 1))]
+        rank = int((1.0 - keep_fraction) * (subsample.size - 1))
+        threshold = np.partition(subsample, rank)[rank]
         candidates = np.flatnonzero(energy >= threshold)
         if count <= candidates.size <= 4 * count + 1024:
             values = energy[candidates]

@@ -96,7 +96,8 @@ class AcquisitionConfig:
         return record
 
 
-def _check_integer(name, value, minimum, maximum=None):
+def check_integer(name, value, minimum, maximum=None):
+    """Raise a ValueError naming ``name`` unless ``value`` is an integer in ``[minimum, maximum]``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{name} must be an integer, got {value!r}")
     if value < minimum or (maximum is not None and value > maximum):
@@ -114,15 +115,15 @@ def validate_config(config):
     """
     if config.kind not in KINDS:
         raise ValueError(f"unknown signal kind {config.kind!r}; choose one of {', '.join(KINDS)}")
-    _check_integer("spp", config.spp, 1, MAXIMUM_SPP - 1)
-    _check_integer("seed", config.seed, 0, 2**32 - 1)
-    _check_integer("max_depth", config.max_depth, 1)
+    check_integer("spp", config.spp, 1, MAXIMUM_SPP - 1)
+    check_integer("seed", config.seed, 0, 2**32 - 1)
+    check_integer("max_depth", config.max_depth, 1)
     if config.nonfinite not in NONFINITE_POLICIES:
         raise ValueError(f"nonfinite must be one of {NONFINITE_POLICIES}, got {config.nonfinite!r}")
     if len(config.shape) < 2:
         raise ValueError(f"shape {tuple(config.shape)} needs at least the two image-plane axes")
     for size in config.shape:
-        _check_integer("every axis resolution", size, 1)
+        check_integer("every axis resolution", size, 1)
     cells = math.prod(config.shape)
     if cells >= 2**32:
         raise ValueError(f"shape {tuple(config.shape)} has {cells} cells; at most 2**32 - 1 are supported")
@@ -195,7 +196,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         raise TypeError(f"scene_spec must be a SceneSpec, got {type(spec).__name__}")
     spec = spec.with_lens(config.aperture, config.focus_distance)
     if chunk_cells is not None:
-        _check_integer("chunk_cells", chunk_cells, 1)
+        check_integer("chunk_cells", chunk_cells, 1)
     # Cheap checks first; the layout of a scene file needs its camera, hence the renderer (checked below).
     if spec.camera is not None:
         layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens)

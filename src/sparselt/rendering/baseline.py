@@ -9,7 +9,7 @@ import os
 
 from ..images import write_png
 from ..provenance import environment_record, write_json
-from .acquire import _check_integer
+from .acquire import check_integer
 from .scenes import get_scene
 
 
@@ -43,13 +43,13 @@ def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, a
     """
     from . import mitsuba_backend
 
-    _check_integer("spp", spp, 1)
-    _check_integer("max_depth", max_depth, 1)
-    _check_integer("seed", seed, 0, 2**32 - 1)
+    check_integer("spp", spp, 1)
+    check_integer("max_depth", max_depth, 1)
+    check_integer("seed", seed, 0, 2**32 - 1)
     spec = (scene_spec or get_scene(scene)).with_lens(aperture, focus_distance)
     resolution = tuple(resolution or spec.default_resolution)
     for size in resolution:
-        _check_integer("resolution", size, 1)
+        check_integer("resolution", size, 1)
     loaded = mitsuba_backend.MitsubaScene(spec, resolution, variant=variant)
     image, seconds = loaded.render_path(spp, max_depth, seed)
     os.makedirs(out, exist_ok=True)

@@ -72,6 +72,25 @@ def _metal(material, alpha):
     return {"type": "roughconductor", "distribution": "ggx", "alpha": float(alpha), "material": material}
 
 
+def _checkered_floor(half_size, tiles, color0, color1, *, alpha):
+    """A glossy checkered floor in the plane y = 0, ``2 half_size`` wide, ``tiles`` checks along each side."""
+    return {
+        "type": "rectangle",
+        "to_world": Transform().rotate((1.0, 0.0, 0.0), -90.0).scale(half_size),
+        "bsdf": {
+            "type": "roughplastic",
+            "distribution": "ggx",
+            "alpha": float(alpha),
+            "diffuse_reflectance": {
+                "type": "checkerboard",
+                "color0": _rgb(color0),
+                "color1": _rgb(color1),
+                "to_uv": Transform().scale((tiles, tiles, 1.0)),
+            },
+        },
+    }
+
+
 # ---------------------------------------------------------------------------
 # dof-sculptures
 # ---------------------------------------------------------------------------
@@ -148,21 +167,7 @@ def dof_sculptures():
             materials[name],
             Transform().translate((x, 0.0, z)).rotate((0.0, 1.0, 0.0), angle).scale(size),
         )
-    objects["floor"] = {
-        "type": "rectangle",
-        "to_world": Transform().rotate((1.0, 0.0, 0.0), -90.0).scale(30.0),
-        "bsdf": {
-            "type": "roughplastic",
-            "distribution": "ggx",
-            "alpha": 0.08,
-            "diffuse_reflectance": {
-                "type": "checkerboard",
-                "color0": _rgb((0.42, 0.40, 0.37)),
-                "color1": _rgb((0.13, 0.13, 0.14)),
-                "to_uv": Transform().scale((90.0, 90.0, 1.0)),
-            },
-        },
-    }
+    objects["floor"] = _checkered_floor(30.0, 90.0, (0.42, 0.40, 0.37), (0.13, 0.13, 0.14), alpha=0.08)
     objects["key-light"] = {
         "type": "rectangle",
         "to_world": Transform().look_at((-3.5, 6.0, 3.0), (0.0, 0.0, -0.5), (0.0, 1.0, 0.0)).scale(1.6),
@@ -442,21 +447,7 @@ def courtyard():
         objects[group] = _ply(meshes.mesh_file(f"courtyard-{group}", _assemble, placements=placements), materials[group])
     extent = COURTYARD_HALF_WIDTH + GALLERY_DEPTH + ROOM_DEPTH + 1.0
     tiles = 2.0 * extent / 0.6  # 60 cm tiles
-    objects["floor"] = {
-        "type": "rectangle",
-        "to_world": Transform().rotate((1.0, 0.0, 0.0), -90.0).scale(extent),
-        "bsdf": {
-            "type": "roughplastic",
-            "distribution": "ggx",
-            "alpha": 0.06,
-            "diffuse_reflectance": {
-                "type": "checkerboard",
-                "color0": _rgb((0.58, 0.48, 0.36)),
-                "color1": _rgb((0.40, 0.18, 0.09)),
-                "to_uv": Transform().scale((tiles, tiles, 1.0)),
-            },
-        },
-    }
+    objects["floor"] = _checkered_floor(extent, tiles, (0.58, 0.48, 0.36), (0.40, 0.18, 0.09), alpha=0.06)
     objects["water"] = {
         "type": "disk",
         "to_world": Transform().translate((0.0, 0.45, 0.0)).rotate((1.0, 0.0, 0.0), -90.0).scale(1.46),
