@@ -25,6 +25,13 @@ _shape = _number_list(int, "64,64,8,8")
 _numbers = _number_list(float, "1,0.5,0.25")
 
 
+def _names(text):
+    names = tuple(part.strip() for part in text.split(",") if part.strip())
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected comma-separated method names, got {text!r}")
+    return names
+
+
 def _methods(text):
     from .fourier.integration import METHODS
 
@@ -115,6 +122,32 @@ def build_parser():
     bench_integrate.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
     bench_integrate.set_defaults(handler=_bench_integrate)
 
+    compare = commands.add_parser(
+        "compare",
+        help="equal-time comparison of methods against path tracing",
+        description="Run methods at several budgets on one scene, kernels warmed first, and measure SSIM, relMSE "
+        "(epsilon 0.01) and the luminance ratio against a cached path-traced reference. Writes results.csv, "
+        "quality_vs_time.png, image_grid.png, table_8.md, images/ and compare.json; a rerun resumes.",
+    )
+    compare.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
+    compare.add_argument("--kind", required=True, choices=("dof", "indirect", "path"), help="signal kind")
+    compare.add_argument("--shape", type=_shape, required=True, help="signal grid of the kind, e.g. 250,250,16,16")
+    compare.add_argument("--methods", type=_names, default=("pt", "cosamp"),
+                         help="comma-separated registered methods (default: pt,cosamp; see --list-methods)")
+    compare.add_argument("--spp", type=_shape, default=(40, 81, 163), help="budgets in samples per pixel (default: 40,81,163)")
+    compare.add_argument("--seeds", type=_shape, default=(1,), help="seeds, comma separated (default: 1)")
+    compare.add_argument("--resolution", type=_shape, default=None, help="output width,height (default: the shape's image axes)")
+    compare.add_argument("--reference-spp", type=int, default=4096, help="reference samples per pixel (default: %(default)s)")
+    compare.add_argument("--max-depth", type=int, default=3, help="longest path (default: %(default)s)")
+    compare.add_argument("--gamma", type=float, default=None, help="gamma of eq. 7.1 for CoSaMP (default 0.25; thesis: 0.25 DoF, 0.5 architecture)")
+    compare.add_argument("--sparsity", type=int, default=None, help="K for CoSaMP (default N/200)")
+    compare.add_argument("--thesis-faithful", action="store_true", help="make 'cosamp' follow thesis 8.1.1 exactly")
+    compare.add_argument("--out", required=True, help="output folder (rerun to resume)")
+    compare.add_argument("--overwrite", action="store_true", help="replace a folder holding another comparison")
+    compare.add_argument("--no-progress", action="store_true", help="hide progress output")
+    _add_camera_options(compare)
+    compare.set_defaults(handler=_compare)
+
     show = commands.add_parser("show", help="pictures of a signal", description="Write the integrated image and 2-D slices of a signal as PNGs.")
     show.add_argument("signal", help="signal folder")
     show.add_argument("--out", required=True, help="output folder")
@@ -191,6 +224,22 @@ def _bench_integrate(arguments):
     check_output_folder(arguments.out, overwrite=arguments.overwrite)
     run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes), methods=arguments.methods, seed=arguments.seed,
                               repeats=arguments.repeats, overwrite=True)
+    return 0
+
+
+def _compare(arguments):
+    from .experiments.compare import ComparisonConfig, compare
+
+    config = ComparisonConfig(
+        scene=arguments.scene, kind=arguments.kind, shape=tuple(arguments.shape), methods=tuple(arguments.methods),
+        spps=tuple(arguments.spp), seeds=tuple(arguments.seeds),
+        resolution=tuple(arguments.resolution) if arguments.resolution else None,
+        reference_spp=arguments.reference_spp, max_depth=arguments.max_depth, aperture=arguments.aperture,
+        focus_distance=arguments.focus_distance, gamma=arguments.gamma, sparsity=arguments.sparsity,
+        thesis_faithful=arguments.thesis_faithful, variant=arguments.variant)
+    result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
+    print(result.table())
+    print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
     return 0
 
 

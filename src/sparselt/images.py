@@ -13,6 +13,21 @@ import numpy as np
 from .provenance import atomic_write_bytes
 
 
+LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)
+
+
+def luminance(rgb):
+    """Rec. 709 luminance of linear RGB (last axis of size 3), float64.
+
+    The luminance channel of thesis 8.1.1 (CoSaMP reconstructs it; chroma
+    comes from the samples) and of the comparison's luminance ratio.
+    """
+    rgb = np.asarray(rgb)
+    if rgb.shape[-1:] != (3,):
+        raise ValueError(f"luminance needs RGB values on the last axis (size 3), got shape {rgb.shape}")
+    return rgb @ np.asarray(LUMINANCE_WEIGHTS, dtype=np.float64)
+
+
 def srgb_tonemap(image, exposure=1.0):
     """Map linear HDR radiance to display values in ``[0, 1]`` (sRGB curve).
 

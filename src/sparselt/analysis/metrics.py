@@ -40,7 +40,7 @@ import numbers
 import numpy as np
 from scipy import ndimage
 
-from ..images import srgb_tonemap
+from ..images import luminance, srgb_tonemap
 
 __all__ = [
     "display_image",
@@ -506,3 +506,37 @@ def image_ssim(image, reference):
         data_range=1.0,
         channel_axis=-1,
     )
+
+
+# --------------------------------------------------------------------------- brightness and contrast
+
+
+def luminance_ratio(image, reference):
+    """Mean Rec. 709 luminance of ``image`` over that of ``reference`` (1 = same brightness).
+
+    The comparison's darkening measure (thesis 8.1.2: CoSaMP images
+    "considerably darker").
+    """
+    image, reference = _image_pair(image, reference)
+    level = float(luminance(reference).mean())
+    if level <= 0:
+        raise ValueError("the reference is black (mean luminance <= 0): a luminance ratio is undefined")
+    return float(luminance(image).mean()) / level
+
+
+def contrast_ratio(image, reference):
+    """RMS contrast (standard deviation over mean of luminance) of ``image`` over that of ``reference``.
+
+    Below 1: flatter than the reference ("lower contrast", thesis 8.1.2).
+    """
+    image, reference = _image_pair(image, reference)
+
+    def contrast(values):
+        level = luminance(values)
+        mean = float(level.mean())
+        return float(level.std()) / mean if mean > 0 else 0.0
+
+    base = contrast(reference)
+    if base <= 0:
+        raise ValueError("the reference has no contrast (uniform or black): a contrast ratio is undefined")
+    return contrast(image) / base

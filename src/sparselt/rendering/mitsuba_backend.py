@@ -357,6 +357,78 @@ class MitsubaScene:
         means = np.stack([np.asarray(channel, dtype=np.float32) for channel in sums], axis=1)
         return means, np.asarray(bad, dtype=np.int64)
 
+    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None):
+        """``spp`` path samples per film pixel, each at a uniformly random point of the pixel's PSS box.
+
+        The image-plane dimensions are jittered inside the film pixel; every
+        other dimension (the signal's non-image axes included) is uniform on
+        ``[0, 1)``, so the grid cell a sample falls in is uniformly random among
+        the pixel's cells and the sample is jittered inside it (thesis 8.1.1).
+        Random numbers come from the same TEA-seeded PCG32 streams as
+        :meth:`sample_cells`, keyed by (seed, pixel, sample index).
+
+        Parameters
+        ----------
+        layout : PathLayout
+            Meaning of every PSS dimension; ``layout.axes`` are gridded.
+        grid_shape : tuple of int
+            Signal grid, in ``layout.axes`` order. Its image axes must divide
+            the film resolution.
+        spp : int
+            Samples per pixel.
+        seed : int
+            Seed in ``[0, 2**32)``.
+        first_pixel, pixel_count : int, optional
+            Film pixels ``first_pixel ..`` in row-major order (row ``y``);
+            default every pixel.
+
+        Returns
+        -------
+        values : ndarray, shape (pixel_count * spp, 3), float32
+            Path contributions, pixel-major (the ``spp`` samples of a pixel are
+            consecutive); NaN or infinite ones are replaced by 0.
+        cells : ndarray, shape (pixel_count * spp,), int64
+            Flat C-order grid cell of each sample.
+        nonfinite : int
+            Number of samples that were NaN or infinite.
+        """
+        total = self.width * self.height
+        pixel_count = total - int(first_pixel) if pixel_count is None else int(pixel_count)
+        lanes = pixel_count * int(spp)
+        samples_per_pixel = dr.opaque(mi.UInt32, int(spp))
+        index = dr.arange(mi.UInt32, lanes)
+        pixel = dr.opaque(mi.UInt32, int(first_pixel)) + index // samples_per_pixel
+        sample_index = index % samples_per_pixel
+        seed_value = dr.opaque(mi.UInt32, int(seed))
+        width = dr.opaque(mi.UInt32, self.width)
+        pixel_x, pixel_y = pixel % width, pixel // width
+
+        generator = mi.PCG32()
+        generator.seed(mi.sample_tea_64(pixel, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value))
+        strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
+        axis_of = {name: position for position, name in enumerate(layout.axes)}
+        samples = {}
+        cell = mi.UInt32(0)
+        for name in layout.dimensions:
+            uniform = generator.next_float32()
+            if name == "x":
+                uniform = dr.minimum((mi.Float(pixel_x) + uniform) * dr.opaque(mi.Float, 1.0 / self.width), ONE_MINUS_EPSILON)
+            elif name == "y":
+                uniform = dr.minimum((mi.Float(pixel_y) + uniform) * dr.opaque(mi.Float, 1.0 / self.height), ONE_MINUS_EPSILON)
+            if name in axis_of:
+                position = axis_of[name]
+                resolution = dr.opaque(mi.Float, float(grid_shape[position]))
+                coordinate = dr.minimum(mi.UInt32(uniform * resolution), mi.UInt32(resolution) - 1)
+                cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
+            samples[name] = uniform
+
+        value = self._path_contribution(layout, samples)
+        finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
+        value = dr.select(finite, value, 0.0)
+        dr.eval(value, cell, finite)
+        values = np.stack([np.asarray(channel, dtype=np.float32) for channel in (value.x, value.y, value.z)], axis=1)
+        return values, np.asarray(cell, dtype=np.int64), lanes - int(np.count_nonzero(np.asarray(finite)))
+
     # -- baseline -------------------------------------------------------------
 
     def render_path(self, spp, max_depth, seed=0):

@@ -1,0 +1,393 @@
+"""Equal-time comparison of rendering methods (``sparselt compare``; thesis chapters 6 and 8).
+
+The research question of the thesis's applications: *is there a gain in image
+quality for the same computation time?* (8.1.1). :func:`compare` runs every
+requested method of the registry (:mod:`sparselt.methods`) at every budget and
+seed on one scene, in one process, kernels warmed first, and measures each
+image against a path-traced reference.
+
+Output folder::
+
+    compare.json            resolved configuration, seeds, versions, git revision,
+                            warm-up (compile) times, harness overhead
+    results.csv             one row per (method, spp, seed): RESULT_COLUMNS first
+    records/                one JSON record per finished (method, spp, seed):
+                            what a rerun resumes from
+    images/                 EXR + PNG per method, spp and seed, and the reference
+    quality_vs_time.png     SSIM and relMSE against seconds (Figures 8.1/8.3)
+    image_grid.png          every method at matched time (Figures 8.2/8.4)
+    table_8.md              time per phase (Tables 8.1/8.2), thesis numbers beside
+
+Every file is written atomically; a rerun with the same comparison skips the
+finished cells, and may add methods, budgets or seeds.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import shutil
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..analysis.metrics import (
+    contrast_ratio,
+    image_ssim,
+    luminance_ratio,
+    reference_exposure,
+    relative_mean_squared_error,
+)
+from ..images import write_png
+from ..methods import TIME_PHASES, Budget, ComparisonContext, get_method
+from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
+from ..rendering import mitsuba_backend
+from ..rendering.acquire import check_integer
+from ..rendering.layout import path_layout
+from ..rendering.scenes import get_scene
+from . import compare_report
+
+KINDS = ("dof", "indirect", "path")
+RELMSE_EPSILON = 0.01
+RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", "seconds_reconstruction",
+                  "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
+EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time")
+CONFIG_FILE = "compare.json"
+RECORDS = "records"
+IMAGES = "images"
+# What makes two comparisons the same: everything but the lists a rerun may extend.
+EXTENSIBLE = ("methods", "spps", "seeds")
+
+
+@dataclass(frozen=True)
+class ComparisonConfig:
+    """What :func:`compare` runs.
+
+    Attributes
+    ----------
+    scene : str
+        Built-in scene name or Mitsuba XML file.
+    kind : {'dof', 'indirect', 'path'}
+        Signal kind whose integral the methods render.
+    shape : tuple of int
+        Signal grid of the kind (image axes first), as in ``sparselt sample``.
+    methods : tuple of str
+        Registered method names.
+    spps : tuple of int
+        Budgets: path samples per output pixel.
+    seeds : tuple of int
+        Seeds; every (method, spp) runs once per seed.
+    resolution : tuple of int or None
+        Output ``(width, height)``; default the shape's image axes.
+    reference_spp : int
+        Samples per pixel of the reference (Mitsuba ``path``).
+    reference_seed : int
+        Seed of the reference (independent of the methods' seeds).
+    max_depth : int
+        Longest path (Mitsuba's convention).
+    aperture, focus_distance : float or None
+        Thin-lens override of the scene's camera.
+    gamma : float or None
+        Gamma of eq. 7.1 for the CoSaMP methods (default 0.25).
+    sparsity : int or None
+        ``K`` for the CoSaMP methods (default ``N / 200``).
+    thesis_faithful : bool
+        Make ``cosamp`` follow thesis 8.1.1 exactly (as ``cosamp-thesis``).
+    variant : str
+        Mitsuba variant.
+    """
+
+    scene: str
+    kind: str
+    shape: tuple
+    methods: tuple = ("pt", "cosamp")
+    spps: tuple = (40, 81, 163)
+    seeds: tuple = (1,)
+    resolution: tuple | None = None
+    reference_spp: int = 4096
+    reference_seed: int = 0
+    max_depth: int = 3
+    aperture: float | None = None
+    focus_distance: float | None = None
+    gamma: float | None = None
+    sparsity: int | None = None
+    thesis_faithful: bool = False
+    variant: str = "llvm_ad_rgb"
+
+    @property
+    def output_resolution(self):
+        return tuple(self.resolution) if self.resolution is not None else tuple(self.shape[:2])
+
+    def record(self):
+        record = asdict(self)
+        for name in ("shape", "methods", "spps", "seeds"):
+            record[name] = list(record[name])
+        record["resolution"] = list(self.output_resolution)
+        return record
+
+    def identity(self):
+        """The record without the lists a rerun may extend."""
+        return {key: value for key, value in self.record().items() if key not in EXTENSIBLE}
+
+    def method_options(self):
+        return {"gamma": self.gamma, "sparsity": self.sparsity, "thesis_faithful": self.thesis_faithful}
+
+
+@dataclass
+class ComparisonResult:
+    """Rows of ``results.csv`` (dicts) and the paths written."""
+
+    rows: list
+    out: str
+    reference: dict = field(default_factory=dict)
+    overhead_fraction: float = 0.0
+
+    def table(self):
+        return compare_report.results_table(self.rows)
+
+
+def validate_config(config):
+    """Check everything that needs no renderer; raise ValueError naming the bad value."""
+    if config.kind not in KINDS:
+        raise ValueError(f"compare supports kinds {', '.join(KINDS)}; got {config.kind!r}")
+    if not config.methods:
+        raise ValueError("give at least one method")
+    if len(set(config.methods)) != len(config.methods):
+        raise ValueError(f"methods {list(config.methods)} repeat a name")
+    methods = [get_method(name) for name in config.methods]
+    for method in methods:
+        if config.kind not in method.kinds:
+            raise ValueError(f"method {method.name!r} does not support kind {config.kind!r}; it supports "
+                             f"{', '.join(method.kinds)}")
+    if not config.spps:
+        raise ValueError("give at least one spp")
+    for spp in config.spps:
+        check_integer("spp", spp, 1, 2**16 - 1)
+    if not config.seeds:
+        raise ValueError("give at least one seed")
+    for seed in config.seeds:
+        check_integer("seed", seed, 0, 2**32 - 2)
+    check_integer("reference spp", config.reference_spp, 1)
+    check_integer("reference seed", config.reference_seed, 0, 2**16 - 1)
+    check_integer("max_depth", config.max_depth, 1)
+    if len(config.shape) < 2:
+        raise ValueError(f"shape {tuple(config.shape)} needs at least the two image axes")
+    for size in config.shape:
+        check_integer("every shape entry", size, 1)
+    if math.prod(config.shape) >= 2**32:
+        raise ValueError(f"shape {tuple(config.shape)} has more than 2**32 - 1 cells")
+    resolution = config.output_resolution
+    if len(resolution) != 2:
+        raise ValueError(f"resolution takes width,height; got {resolution}")
+    for size in resolution:
+        check_integer("resolution", size, 1)
+    for method in methods:
+        if method.needs_resolution_multiple and any(r % s for r, s in zip(resolution, config.shape[:2])):
+            raise ValueError(f"method {method.name!r} needs --resolution to be a multiple of the shape's image axes "
+                             f"{tuple(config.shape[:2])}; got {resolution}")
+    if min(resolution) < 11:
+        raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
+    spec = get_scene(config.scene).with_lens(config.aperture, config.focus_distance)
+    if spec.camera is not None:
+        _check_layout(config, spec.resolved_camera().thin_lens)
+    return spec
+
+
+def _check_layout(config, thin_lens):
+    layout = path_layout(config.kind, config.max_depth, thin_lens=thin_lens)
+    if len(config.shape) != len(layout.axes):
+        raise ValueError(f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max "
+                         f"depth {config.max_depth} has {len(layout.axes)}: {', '.join(layout.axes)}")
+    return layout
+
+
+def _prepare_folder(out, config, overwrite):
+    """Create ``out`` or check that it holds this comparison; return the previous record or None."""
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise ValueError(f"output path {out!r} is an existing file, not a folder")
+    config_path = os.path.join(out, CONFIG_FILE)
+    if os.path.isfile(config_path):
+        previous = read_json(config_path)
+        if previous.get("config", {}).get("identity") == config.identity():
+            return previous
+        if not overwrite:
+            raise ValueError(f"{out!r} holds another comparison (scene {previous.get('config', {}).get('scene')!r}, "
+                             "different settings); choose another --out or pass --overwrite to replace it")
+        _clear(out)
+    elif os.path.isdir(out) and os.listdir(out):
+        if not overwrite:
+            raise ValueError(f"output folder {out!r} exists, is not empty and is not a comparison; "
+                             "choose another --out or pass --overwrite")
+        _clear(out)
+    os.makedirs(os.path.join(out, RECORDS), exist_ok=True)
+    os.makedirs(os.path.join(out, IMAGES), exist_ok=True)
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise PermissionError(f"output folder {out!r} is not writable")
+    return None
+
+
+def _clear(out):
+    for name in os.listdir(out):
+        path = os.path.join(out, name)
+        if os.path.isdir(path) and not os.path.islink(path):
+            shutil.rmtree(path)
+        else:
+            os.remove(path)
+
+
+def cell_name(method, spp, seed):
+    return f"{method}_spp{spp}_seed{seed}"
+
+
+def quality(image, reference):
+    """SSIM (the project's HDR convention), relMSE (epsilon 0.01), luminance and contrast ratios."""
+    return {
+        "ssim": image_ssim(image, reference),
+        "relmse": relative_mean_squared_error(image, reference, epsilon=RELMSE_EPSILON),
+        "luminance_ratio": luminance_ratio(image, reference),
+        "contrast_ratio": contrast_ratio(image, reference),
+    }
+
+
+def compare(config, out, *, overwrite=False, progress=True, cache_directory=None):
+    """Run an equal-time comparison and write its folder (see the module docstring).
+
+    Parameters
+    ----------
+    config : ComparisonConfig
+    out : str
+        Output folder. A folder holding the same comparison is resumed
+        (finished cells are kept); one holding another comparison is refused
+        unless ``overwrite``.
+    overwrite : bool, optional
+        Replace a folder that holds something else.
+    progress : bool, optional
+        Progress bars and one line per finished cell on standard error.
+    cache_directory : str, optional
+        Where reference images are cached (default ``$SPARSELT_CACHE/references``).
+
+    Returns
+    -------
+    ComparisonResult
+
+    Raises
+    ------
+    ValueError
+        Unknown method (the message lists the registered ones), a method that
+        does not support the kind, spp <= 0, a shape that does not match the
+        kind, a resolution that is not a multiple of the shape's image axes
+        where a method needs it, an output folder holding another comparison.
+        Nothing already computed is touched before these checks pass.
+    """
+    from ..rendering.baseline import cached_reference
+
+    started = time.perf_counter()
+    spec = validate_config(config)
+    out = os.fspath(out)
+    previous = _prepare_folder(out, config, overwrite)
+
+    loaded = mitsuba_backend.MitsubaScene(spec, config.output_resolution, variant=config.variant)
+    layout = _check_layout(config, loaded.camera.thin_lens)
+    context = ComparisonContext(scene=loaded, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
+                                resolution=config.output_resolution, max_depth=config.max_depth,
+                                options=config.method_options())
+    methods = [get_method(name) for name in config.methods]
+    for method in methods:
+        method.check(context)
+
+    record = previous or {}
+    record["config"] = dict(config.record(), identity=config.identity())
+    record["provenance"] = environment_record()
+    record["method_descriptions"] = {method.name: method.description for method in methods}
+    record.setdefault("warm_up_seconds", {})
+    record["relmse_epsilon"] = RELMSE_EPSILON
+    record["status"] = "running"
+    write_json(os.path.join(out, CONFIG_FILE), record)
+
+    reference_start = time.perf_counter()
+    reference, reference_record = cached_reference(loaded, config.kind, spp=config.reference_spp,
+                                                   max_depth=config.max_depth, seed=config.reference_seed,
+                                                   progress=progress, cache_directory=cache_directory)
+    reference_seconds = time.perf_counter() - reference_start
+    exposure = reference_exposure(reference)
+    _write_image(out, "reference", reference, exposure)
+    record["reference"] = {key: reference_record[key] for key in ("key", "seconds", "cached", "path")}
+
+    method_seconds = 0.0
+    for method in methods:
+        cells = [(spp, seed) for seed in config.seeds for spp in config.spps
+                 if not os.path.isfile(os.path.join(out, RECORDS, cell_name(method.name, spp, seed) + ".json"))]
+        if not cells:
+            continue
+        warm_start = time.perf_counter()
+        method.warm_up(context)
+        record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
+        method_seconds += record["warm_up_seconds"][method.name]
+        for spp, seed in cells:
+            run_start = time.perf_counter()
+            result = method.run(context, Budget(spp=spp, seed=seed))
+            method_seconds += time.perf_counter() - run_start
+            row = _row(method.name, spp, seed, result, reference)
+            _write_image(out, cell_name(method.name, spp, seed), result.image, exposure)
+            write_json(os.path.join(out, RECORDS, cell_name(method.name, spp, seed) + ".json"),
+                       {"row": row, "details": result.details, "seconds": result.seconds})
+            if progress:
+                print(f"compare: {method.name:14s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
+                      f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, luminance x{row['luminance_ratio']:.3f}",
+                      file=sys.stderr)
+
+    rows = _load_rows(out, config)
+    compare_report.add_equal_time_columns(rows)
+    report_start = time.perf_counter()
+    compare_report.write_results_csv(os.path.join(out, "results.csv"), rows, RESULT_COLUMNS + EXTRA_COLUMNS)
+    compare_report.plot_quality_vs_time(os.path.join(out, "quality_vs_time.png"), rows, spec.name, RELMSE_EPSILON)
+    compare_report.plot_image_grid(os.path.join(out, "image_grid.png"), rows, reference,
+                                   lambda row: os.path.join(out, IMAGES, cell_name(row["method"], row["spp"],
+                                                                                   row["seed"]) + ".npy"))
+    compare_report.write_table_8(os.path.join(out, "table_8.md"), rows, spec.name, config)
+    report_seconds = time.perf_counter() - report_start
+    total = time.perf_counter() - started
+    harness = max(0.0, total - method_seconds - reference_seconds)
+    record["status"] = "complete"
+    record["seconds"] = {"total": total, "methods": method_seconds, "reference": reference_seconds,
+                         "reports": report_seconds, "harness": harness}
+    record["harness_overhead_fraction"] = harness / total if total > 0 else 0.0
+    write_json(os.path.join(out, CONFIG_FILE), record)
+    return ComparisonResult(rows=rows, out=out, reference=record["reference"],
+                            overhead_fraction=record["harness_overhead_fraction"])
+
+
+def _row(name, spp, seed, result, reference):
+    seconds = {phase: float(result.seconds.get(phase, 0.0)) for phase in TIME_PHASES}
+    row = {"method": name, "spp": spp, "seed": seed, "seconds_total": sum(seconds.values())}
+    row.update({f"seconds_{phase}": value for phase, value in seconds.items()})
+    row["path_samples"] = int(result.path_samples)
+    if not np.all(np.isfinite(result.image)):
+        raise ValueError(f"method {name!r} produced NaN or infinite pixels at spp {spp}, seed {seed}")
+    row.update(quality(result.image, reference))
+    return row
+
+
+def _write_image(out, name, image, exposure):
+    folder = os.path.join(out, IMAGES)
+    buffer = io.BytesIO()
+    np.save(buffer, np.asarray(image, dtype=np.float32))
+    atomic_write_bytes(os.path.join(folder, name + ".npy"), buffer.getvalue())
+    temporary = os.path.join(folder, ".tmp-" + name + ".exr")
+    mitsuba_backend.write_exr(temporary, image)
+    os.replace(temporary, os.path.join(folder, name + ".exr"))
+    write_png(os.path.join(folder, name + ".png"), image, exposure=exposure)
+
+
+def _load_rows(out, config):
+    rows = []
+    for method in config.methods:
+        for seed in config.seeds:
+            for spp in config.spps:
+                path = os.path.join(out, RECORDS, cell_name(method, spp, seed) + ".json")
+                if os.path.isfile(path):
+                    rows.append(read_json(path)["row"])
+    return rows

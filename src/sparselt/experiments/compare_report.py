@@ -1,0 +1,182 @@
+"""What ``sparselt compare`` writes besides images: the CSV, the plots and Tables 8.1/8.2."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+
+import numpy as np
+
+from ..images import save_figure, srgb_tonemap
+from ..provenance import atomic_write_bytes
+
+# Thesis Tables 8.1 (Dragons) and 8.2 (San Miguel): SPP -> (total, sampling, CoSaMP, integration) seconds.
+THESIS_TABLES = {
+    "dof-sculptures": ("8.1", "Dragons", {40: (16.7, 1.89, 14.6, 0.182), 81: (22.4, 4.06, 18.1, 0.195),
+                                          163: (29.0, 8.13, 20.7, 0.183), 327: (51.6, 16.0, 35.3, 0.182)}),
+    "courtyard": ("8.2", "San Miguel", {40: (26.93, 12.49, 14.43, 0.012), 81: (38.59, 27.11, 11.30, 0.19),
+                                        163: (63.21, 49.50, 13.53, 0.19)}),
+}
+
+
+def _format(value):
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return str(value)
+
+
+def write_results_csv(path, rows, columns):
+    """``results.csv``: ``columns`` first (in that order), then any other keys, sorted."""
+    extra = sorted({key for row in rows for key in row} - set(columns))
+    header = list(columns) + extra
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(header)
+    for row in rows:
+        writer.writerow([_format(row.get(key, "")) for key in header])
+    atomic_write_bytes(path, buffer.getvalue().encode())
+
+
+def add_equal_time_columns(rows):
+    """Add ``relmse_pt_equal_time``: PT's relMSE at the row's time (log-log interpolation of PT's runs).
+
+    Empty where PT was not run or the time is outside PT's measured range.
+    Averaged over seeds first.
+    """
+    pt = _mean_curve([row for row in rows if row["method"] == "pt"], "relmse")
+    for row in rows:
+        row["relmse_pt_equal_time"] = ""
+        if row["method"] == "pt" or len(pt) < 2:
+            continue
+        times, values = zip(*pt)
+        time = row["seconds_total"]
+        if times[0] <= time <= times[-1]:
+            row["relmse_pt_equal_time"] = float(np.exp(np.interp(np.log(time), np.log(times), np.log(values))))
+
+
+def _mean_curve(rows, quantity):
+    """[(mean seconds, mean quantity)] per spp, sorted by time."""
+    by_spp = {}
+    for row in rows:
+        by_spp.setdefault(row["spp"], []).append(row)
+    curve = [(float(np.mean([r["seconds_total"] for r in group])), float(np.mean([r[quantity] for r in group])))
+             for group in by_spp.values()]
+    return sorted(curve)
+
+
+def results_table(rows):
+    """A plain-text table of the rows (what the CLI prints)."""
+    header = f"{'method':14s} {'spp':>5s} {'seed':>4s} {'seconds':>8s} {'SSIM':>6s} {'relMSE':>9s} {'lum.':>6s} {'PT relMSE same t':>16s}"
+    lines = [header, "-" * len(header)]
+    for row in rows:
+        equal = row.get("relmse_pt_equal_time", "")
+        lines.append(f"{row['method']:14s} {row['spp']:5d} {row['seed']:4d} {row['seconds_total']:8.3f} "
+                     f"{row['ssim']:6.3f} {row['relmse']:9.4g} {row['luminance_ratio']:6.3f} "
+                     f"{(f'{equal:.4g}' if equal != '' else '-'):>16s}")
+    return "\n".join(lines)
+
+
+def plot_quality_vs_time(path, rows, scene, epsilon):
+    """SSIM and relMSE against total seconds, one line per method, log time axis (Figures 8.1/8.3)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+
+    figure, (left, right) = pyplot.subplots(1, 2, figsize=(11, 4.2))
+    for method in dict.fromkeys(row["method"] for row in rows):
+        method_rows = [row for row in rows if row["method"] == method]
+        for axis, quantity in ((left, "ssim"), (right, "relmse")):
+            curve = _mean_curve(method_rows, quantity)
+            axis.plot([c[0] for c in curve], [c[1] for c in curve], marker="o", label=method)
+    left.set(xscale="log", xlabel="seconds (total, kernels warm)", ylabel="SSIM", title=f"{scene}: SSIM vs time")
+    right.set(xscale="log", yscale="log", xlabel="seconds (total, kernels warm)",
+              ylabel=f"relMSE (epsilon = {epsilon:g})", title=f"{scene}: relMSE vs time")
+    for axis in (left, right):
+        axis.grid(True, which="both", alpha=0.3)
+        axis.legend()
+    figure.tight_layout()
+    save_figure(figure, path, dpi=110)
+
+
+def matched_rows(rows):
+    """One row per method, at matched time (Figures 8.2/8.4).
+
+    The target is the earliest time at which every method has an image: the
+    largest over methods of each method's shortest run. Each method shows its
+    run closest to it in log time (first seed).
+    """
+    methods = list(dict.fromkeys(row["method"] for row in rows))
+    seed = rows[0]["seed"] if rows else None
+    chosen = [row for row in rows if row["seed"] == seed]
+    target = max(min(row["seconds_total"] for row in chosen if row["method"] == method) for method in methods)
+    matched = []
+    for method in methods:
+        candidates = [row for row in chosen if row["method"] == method]
+        matched.append(min(candidates, key=lambda row: abs(math.log(row["seconds_total"] / target))))
+    return matched, target
+
+
+def plot_image_grid(path, rows, reference, image_path):
+    """The reference and every method at matched time, with SSIM, relMSE and luminance ratio."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+
+    from ..analysis.metrics import reference_exposure
+
+    if not rows:
+        return
+    matched, target = matched_rows(rows)
+    exposure = reference_exposure(reference)
+    panels = len(matched) + 1
+    figure, axes = pyplot.subplots(1, panels, figsize=(3.2 * panels, 3.6), squeeze=False)
+    axes = axes[0]
+    axes[0].imshow(srgb_tonemap(reference, exposure))
+    axes[0].set_title("reference", fontsize=9)
+    for axis, row in zip(axes[1:], matched):
+        axis.imshow(srgb_tonemap(np.load(image_path(row)), exposure))
+        axis.set_title(f"{row['method']} {row['spp']} spp, {row['seconds_total']:.2f} s\n"
+                       f"SSIM {row['ssim']:.3f} relMSE {row['relmse']:.3g} lum x{row['luminance_ratio']:.2f}",
+                       fontsize=8)
+    for axis in axes:
+        axis.set_xticks([])
+        axis.set_yticks([])
+    figure.suptitle(f"matched time: about {target:.2f} s", fontsize=10)
+    figure.tight_layout()
+    save_figure(figure, path, dpi=110)
+
+
+def write_table_8(path, rows, scene, config):
+    """Tables 8.1/8.2: seconds per phase by spp for every method (mean over seeds), the thesis's beside."""
+    from . import compare
+
+    lines = [f"# Execution times (s), {scene}, kind {config.kind}, grid {'x'.join(map(str, config.shape))}, "
+             f"image {'x'.join(map(str, config.output_resolution))}", "",
+             "Mean over seeds; kernels warmed first; CoSaMP = the reconstruction phase; "
+             f"relMSE epsilon = {compare.RELMSE_EPSILON}.", ""]
+    thesis = THESIS_TABLES.get(scene)
+    for method in dict.fromkeys(row["method"] for row in rows):
+        lines += [f"## {method}", ""]
+        header = "| SPP | Total | Sampling | CoSaMP | Integration | Other | SSIM | relMSE | luminance ratio |"
+        if thesis and method.startswith("cosamp"):
+            header += f" thesis Table {thesis[0]} ({thesis[1]}): Total / Sampling / CoSaMP / Integration |"
+        lines += [header, "|" + "---|" * (header.count("|") - 1)]
+        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
+            group = [row for row in rows if row["method"] == method and row["spp"] == spp]
+
+            def mean(key, group=group):
+                return float(np.mean([row[key] for row in group]))
+
+            line = (f"| {spp} | {mean('seconds_total'):.3f} | {mean('seconds_sampling'):.3f} | "
+                    f"{mean('seconds_reconstruction'):.3f} | {mean('seconds_integration'):.3f} | "
+                    f"{mean('seconds_other'):.3f} | {mean('ssim'):.3f} | {mean('relmse'):.4g} | "
+                    f"{mean('luminance_ratio'):.3f} |")
+            if thesis and method.startswith("cosamp"):
+                values = thesis[2].get(spp)
+                line += (" " + " / ".join(f"{v:g}" for v in values) + " |") if values else " - |"
+            lines.append(line)
+        lines.append("")
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())

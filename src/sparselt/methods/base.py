@@ -1,0 +1,140 @@
+"""The one interface every equal-time comparison method implements (thesis 8.1.1).
+
+A method gets a budget (samples per pixel and a seed) and the comparison's
+:class:`ComparisonContext` (scene loaded in the renderer, signal grid, output
+resolution, options) and returns a :class:`MethodResult`: the image and where
+its time went. :func:`sparselt.experiments.compare.compare` runs methods from
+the registry in :mod:`sparselt.methods`; new methods (filters, guiding, the
+SFT) plug in by subclassing :class:`Method` and registering, without touching
+the harness.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+TIME_PHASES = ("sampling", "reconstruction", "integration", "other")
+
+
+@dataclass(frozen=True)
+class Budget:
+    """What a method may spend: ``spp`` path samples per output pixel, with ``seed``."""
+
+    spp: int
+    seed: int
+
+
+@dataclass(frozen=True)
+class MethodResult:
+    """What one method produced at one budget.
+
+    Attributes
+    ----------
+    image : ndarray, shape (height, width, 3), float32
+        Linear RGB at the comparison's output resolution.
+    seconds : dict
+        Wall seconds per phase, keys :data:`TIME_PHASES`; their sum is the
+        method's total time.
+    path_samples : int
+        Path samples drawn (every one counted, pilot samples included).
+    details : dict
+        Anything else worth recording (iterations, stop reason, ...), JSON-able.
+    """
+
+    image: np.ndarray
+    seconds: dict
+    path_samples: int
+    details: dict = field(default_factory=dict)
+
+    @property
+    def total_seconds(self):
+        return float(sum(self.seconds.values()))
+
+
+@dataclass
+class ComparisonContext:
+    """Everything a method needs besides its budget.
+
+    Attributes
+    ----------
+    scene : MitsubaScene
+        The scene loaded at the output resolution (renderer adapter object).
+    layout : PathLayout
+        PSS layout of the signal kind.
+    kind : str
+        Signal kind ('dof', 'indirect', 'path').
+    grid_shape : tuple of int
+        Signal grid, image axes ``(width, height)`` first.
+    resolution : tuple of int
+        Output image ``(width, height)``.
+    max_depth : int
+        Longest path (Mitsuba's convention).
+    options : dict
+        Method options (``gamma``, ``sparsity``, ``thesis_faithful``, ...).
+    """
+
+    scene: object
+    layout: object
+    kind: str
+    grid_shape: tuple
+    resolution: tuple
+    max_depth: int
+    options: dict = field(default_factory=dict)
+
+    @property
+    def upscale(self):
+        """Output pixels per grid cell along ``(x, y)``."""
+        return (self.resolution[0] // self.grid_shape[0], self.resolution[1] // self.grid_shape[1])
+
+
+class PhaseTimer:
+    """Accumulate wall time per phase: ``with timer('sampling'): ...``."""
+
+    def __init__(self, phases=TIME_PHASES):
+        self.seconds = {phase: 0.0 for phase in phases}
+        self._phase = None
+
+    def __call__(self, phase):
+        if phase not in self.seconds:
+            raise ValueError(f"unknown phase {phase!r}; phases are {', '.join(self.seconds)}")
+        self._phase = phase
+        return self
+
+    def __enter__(self):
+        self._start = time.perf_counter()
+        return self
+
+    def __exit__(self, *exception):
+        self.seconds[self._phase] += time.perf_counter() - self._start
+        return False
+
+
+class Method:
+    """Base class of comparison methods.
+
+    Subclasses set :attr:`name`, :attr:`kinds` (signal kinds they support),
+    :attr:`description`, optionally :attr:`needs_resolution_multiple` (the
+    output resolution must be a multiple of the grid's image axes), and
+    implement :meth:`run`.
+    """
+
+    name = ""
+    kinds = ()
+    description = ""
+    needs_resolution_multiple = False
+
+    def check(self, context):
+        """Raise ValueError when the method cannot run in ``context`` (before anything is computed)."""
+        if context.kind not in self.kinds:
+            raise ValueError(f"method {self.name!r} does not support kind {context.kind!r}; it supports "
+                             f"{', '.join(self.kinds)}")
+
+    def warm_up(self, context):
+        """Compile the renderer's kernels: one run at 1 spp, result discarded."""
+        self.run(context, Budget(spp=1, seed=0xFFFF_FFFF))
+
+    def run(self, context, budget):  # pragma: no cover - interface
+        raise NotImplementedError

@@ -1,0 +1,38 @@
+"""Method ``pt``: plain path tracing, the baseline every method must beat at equal time."""
+
+from __future__ import annotations
+
+from .base import Method, MethodResult, PhaseTimer
+from .pixel_samples import draw_pixel_samples
+from .registry import register
+
+
+@register
+class PathTracing(Method):
+    """Mitsuba's ``path`` integrator at ``spp`` (kinds ``dof`` and ``path``).
+
+    For kind ``indirect`` (one-bounce indirect light, which Mitsuba's ``path``
+    cannot render alone) it is the same estimator as the signal kind's, with
+    every PSS dimension uniform: path tracing of that integrand, through the
+    sampler of :func:`~sparselt.methods.pixel_samples.draw_pixel_samples`.
+    """
+
+    name = "pt"
+    kinds = ("dof", "indirect", "path")
+    description = "path tracing: Mitsuba's path integrator (the kind's own estimator for 'indirect')"
+
+    def run(self, context, budget):
+        timer = PhaseTimer()
+        if context.kind == "indirect":
+            with timer("sampling"):
+                samples = draw_pixel_samples(context, budget)
+            with timer("integration"):
+                image = samples.pixel_means()
+            details = {"integrator": "sparselt indirect estimator", "nonfinite_samples": samples.nonfinite}
+        else:
+            image, seconds = context.scene.render_path(budget.spp, context.max_depth, budget.seed)
+            timer.seconds["sampling"] = seconds
+            details = {"integrator": "mitsuba path"}
+        width, height = context.resolution
+        return MethodResult(image=image, seconds=timer.seconds, path_samples=width * height * budget.spp,
+                            details=details)

@@ -1,0 +1,25 @@
+"""Method ``samples-mean``: the ablation of the CoSaMP methods (same samples, no reconstruction)."""
+
+from __future__ import annotations
+
+from .base import Method, MethodResult, PhaseTimer
+from .pixel_samples import draw_pixel_samples
+from .registry import register
+
+
+@register
+class SamplesMean(Method):
+    """Per-pixel mean of exactly the samples the CoSaMP methods receive (their ablation)."""
+
+    name = "samples-mean"
+    kinds = ("dof", "indirect", "path")
+    description = "per-pixel mean of the CoSaMP methods' samples (the same budget without reconstruction)"
+
+    def run(self, context, budget):
+        timer = PhaseTimer()
+        with timer("sampling"):
+            samples = draw_pixel_samples(context, budget)
+        with timer("integration"):
+            image = samples.pixel_means()
+        return MethodResult(image=image, seconds=timer.seconds, path_samples=samples.values.shape[0],
+                            details={"nonfinite_samples": samples.nonfinite})
