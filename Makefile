@@ -13,20 +13,22 @@ $(STAMP): pyproject.toml scripts/bootstrap.sh
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
-# Main job: a dof signal of the depth-of-field scene, its integrated image and slices,
-# and the path-traced reference at the same resolution.
+# Main job, the whole story at a small size: a dof signal of the depth-of-field scene, its
+# pictures and sparsity analysis, then the equal-time comparison of path tracing with the
+# CoSaMP reconstruction (thesis 8.1), the thesis's procedure beside ours, against a cached reference.
 demo: $(STAMP)
 	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,16,16 --spp 16 --seed 1 --out $(DEMO)/signal --overwrite
 	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures
 	$(BIN)/sparselt analyze $(DEMO)/signal --out $(DEMO)/analysis --overwrite
-	$(BIN)/sparselt render --scene dof-sculptures --resolution 128,128 --spp 2048 --out $(DEMO)/reference --overwrite
-	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, reference in $(DEMO)/reference"
+	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis --spp 16,40,81 --reference-spp 1024 --gamma 0.25 --out $(DEMO)/compare --overwrite
+	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, comparison in $(DEMO)/compare (table_8.md, quality_vs_time.png, image_grid.png)"
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/sampling_throughput.py
 	$(BIN)/python benchmarks/fft_backends.py
 	$(BIN)/python benchmarks/cosamp.py
 	$(BIN)/python benchmarks/sft.py
+	$(BIN)/python benchmarks/compare_overhead.py
 	$(BIN)/sparselt bench integrate --out out/bench-integrate --overwrite
 
 clean:

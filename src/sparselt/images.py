@@ -17,7 +17,7 @@ LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)
 
 
 def luminance(rgb):
-    """Rec. 709 luminance of linear RGB (last axis of size 3), float64.
+    """Rec. 709 luminance of linear RGB (last axis of size 3); float32 for float32 input, else float64.
 
     The luminance channel of thesis 8.1.1 (CoSaMP reconstructs it; chroma
     comes from the samples) and of the comparison's luminance ratio.
@@ -25,7 +25,8 @@ def luminance(rgb):
     rgb = np.asarray(rgb)
     if rgb.shape[-1:] != (3,):
         raise ValueError(f"luminance needs RGB values on the last axis (size 3), got shape {rgb.shape}")
-    return rgb @ np.asarray(LUMINANCE_WEIGHTS, dtype=np.float64)
+    dtype = np.float32 if rgb.dtype == np.float32 else np.float64
+    return rgb.astype(dtype, copy=False) @ np.asarray(LUMINANCE_WEIGHTS, dtype=dtype)
 
 
 def srgb_tonemap(image, exposure=1.0):

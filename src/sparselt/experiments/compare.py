@@ -289,7 +289,9 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     out = os.fspath(out)
     previous = _prepare_folder(out, config, overwrite)
 
+    load_start = time.perf_counter()
     loaded = mitsuba_backend.MitsubaScene(spec, config.output_resolution, variant=config.variant)
+    load_seconds = time.perf_counter() - load_start
     layout = _check_layout(config, loaded.camera.thin_lens)
     context = ComparisonContext(scene=loaded, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
                                 resolution=config.output_resolution, max_depth=config.max_depth,
@@ -299,7 +301,11 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         method.check(context)
 
     record = previous or {}
-    record["config"] = dict(config.record(), identity=config.identity())
+    resolved = dict(config.record(), identity=config.identity())
+    for name in EXTENSIBLE:  # a rerun may add methods, budgets or seeds: record the union
+        earlier = record.get("config", {}).get(name, [])
+        resolved[name] = list(dict.fromkeys(list(earlier) + resolved[name]))
+    record["config"] = resolved
     record["provenance"] = environment_record()
     record["method_descriptions"] = {method.name: method.description for method in methods}
     record.setdefault("warm_up_seconds", {})
@@ -353,7 +359,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     harness = max(0.0, total - method_seconds - reference_seconds)
     record["status"] = "complete"
     record["seconds"] = {"total": total, "methods": method_seconds, "reference": reference_seconds,
-                         "reports": report_seconds, "harness": harness}
+                         "harness": harness, "of_which_scene_load": load_seconds, "of_which_reports": report_seconds}
     record["harness_overhead_fraction"] = harness / total if total > 0 else 0.0
     write_json(os.path.join(out, CONFIG_FILE), record)
     return ComparisonResult(rows=rows, out=out, reference=record["reference"],
@@ -383,11 +389,9 @@ def _write_image(out, name, image, exposure):
 
 
 def _load_rows(out, config):
-    rows = []
-    for method in config.methods:
-        for seed in config.seeds:
-            for spp in config.spps:
-                path = os.path.join(out, RECORDS, cell_name(method, spp, seed) + ".json")
-                if os.path.isfile(path):
-                    rows.append(read_json(path)["row"])
+    """Every finished cell in the folder: this run's and those of earlier runs of the same comparison."""
+    rows = [read_json(os.path.join(out, RECORDS, name))["row"]
+            for name in os.listdir(os.path.join(out, RECORDS)) if name.endswith(".json")]
+    order = {name: index for index, name in enumerate(config.methods)}
+    rows.sort(key=lambda row: (order.get(row["method"], len(order)), row["method"], row["seed"], row["spp"]))
     return rows

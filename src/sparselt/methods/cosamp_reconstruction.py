@@ -57,6 +57,13 @@ from .registry import register
 
 DEFAULT_GAMMA = 0.25
 SPARSITY_RATE = 1 / 200  # thesis 8.1.1: "an expected sparsity rate of 1/200"
+# Rendered measurements are noisy: the residual cannot fall below the noise. Stop at the first
+# iteration that improves it by less than 1% (measured on dof-sculptures 250x250x16x16 at 40 spp:
+# 3 iterations instead of 5, 1.97 s instead of 3.35 s, final residual 0.2168 in both), with 3
+# conjugate-gradient steps per least squares (1.55 s, residual 0.2169).
+STAGNATION = 1e-2
+PATIENCE = 1
+CONJUGATE_GRADIENT_STEPS = 3
 
 
 def default_sparsity(grid_shape):
@@ -102,7 +109,8 @@ def reconstruct_luminance(cells, means, grid_shape, *, gamma, sparsity, dtype=np
     scale = 1.0 / maximum if maximum > 0 else 0.0
     mapped = np.power(means * scale, gamma).astype(dtype)
     operator = PartialFourier(grid_shape, cells, real=True, dtype=dtype)
-    result = cosamp(operator, mapped, int(sparsity))
+    result = cosamp(operator, mapped, int(sparsity), stagnation=STAGNATION, patience=PATIENCE,
+                    conjugate_gradient_steps=CONJUGATE_GRADIENT_STEPS)
     signal = result.estimate.to_signal(dtype=dtype)
     np.maximum(signal, 0, out=signal)  # t ** (1 / gamma) is undefined below 0
     np.power(signal, np.dtype(dtype).type(1.0 / gamma), out=signal)
