@@ -1,4 +1,4 @@
-"""Methods ``cosamp`` and ``cosamp-thesis``: 4-D CoSaMP reconstruction of the image (thesis 8.1).
+r"""Methods ``cosamp`` and ``cosamp-thesis``: 4-D CoSaMP reconstruction of the image (thesis 8.1).
 
 Both draw ``spp`` samples per pixel at uniformly random cells of the pixel's
 non-image axes (:func:`~sparselt.methods.pixel_samples.draw_pixel_samples`),
@@ -24,21 +24,32 @@ flatter than the reference (8.1.2). Two causes, both measurable:
    steep part of the curve and amplifies both effects.
 
 ``cosamp`` (the default) removes the bias without touching the reference: the
-reconstruction ``R`` becomes a control variate. For output pixel ``p`` with
-samples ``u_i`` falling in cells ``c_i``,
+reconstruction becomes a control variate, cross-fitted so that it cannot
+bias the image. The samples of each pixel are split in two folds (even and
+odd sample index); ``R_k``, reconstructed from fold ``k`` alone, corrects the
+samples of the other fold. For output pixel ``p`` with cells ``P`` under it,
 
-.. math:: I_p = \\bar f_p + \\hat\\chi_p \\Big(\\frac{1}{|P|}\\sum_{c \\in P} R(c)
-          - \\frac{1}{n}\\sum_i R(c_i)\\Big)
+.. math:: I_p = \bar f_p + \beta\,\hat\chi_p\,\frac{1}{2}\sum_{k=0}^{1}
+          \Big(\frac{1}{|P|}\sum_{c \in P} R_k(c) - \frac{1}{n_{1-k}}
+          \sum_{i \in \text{fold } 1-k} R_k(c_i)\Big)
 
-where ``\\bar f_p`` is the per-pixel sample mean (RGB), ``\\hat\\chi_p`` its
-chroma (RGB divided by luminance) and ``P`` the grid cells under the pixel.
-Since ``c_i`` is uniform over ``P``, the bracket has expectation zero for a
-fixed ``R``: the estimator keeps the mean of path tracing whatever ``R`` is,
-and its variance is that of ``f - R``, smaller than path tracing's where
-``R`` follows the variation over the lens (or secondary direction). ``R`` is
-fitted to the same samples; with ``K`` much smaller than the number of
-measured cells the fit leaves the correction nearly unbiased (measured: the
-luminance ratio of the comparison).
+with ``\bar f_p`` the per-pixel sample mean (RGB) and ``\hat\chi_p`` its
+chroma (RGB over luminance). A sample's cell is uniform over ``P`` and
+independent of the other fold, so every bracket has expectation zero: the
+estimator keeps the mean of path tracing whatever ``R`` is. ``\beta`` is the
+variance-optimal control-variate coefficient ``cov(f, R) / var(R)``,
+estimated from the pixel-centred samples of both folds (no reference is
+involved); it says how much of the within-pixel variation of the samples the
+reconstruction explains, and a useless reconstruction (``beta`` near 0) falls
+back to the samples' mean instead of adding its own noise. Measured on
+dof-sculptures 128x128x16x16: ``beta`` 0.02 at 16 spp, 0.11 at 40, 0.29 at
+81; the uncorrected in-sample version was 6% dark at 16 spp (overfitting).
+
+References
+----------
+Thesis 8.1. Glynn, P. W. and Szechtman, R. (2002). Some new perspectives on
+the method of control variates. Chernozhukov et al. (2018), double/debiased
+machine learning (cross-fitting).
 """
 
 from __future__ import annotations
@@ -176,9 +187,9 @@ def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=
     gamma, sparsity : float, int
         As :func:`reconstruct_luminance`.
     thesis_faithful : bool, optional
-        ``True``: the integrated reconstruction times the samples' chroma
-        (thesis). ``False``: the reconstruction as a control variate (see the
-        module docstring).
+        ``True``: the integrated reconstruction of all samples times the
+        samples' chroma (thesis). ``False``: the cross-fitted control variate
+        of the module docstring (needs ``spp >= 2``).
     timer : PhaseTimer, optional
         Receives the 'other', 'reconstruction' and 'integration' times.
 
@@ -186,33 +197,61 @@ def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=
     -------
     image : ndarray, shape (height, width, 3), float32
     details : dict
+        Gamma, K, CoSaMP iterations and stop reasons, measured cells, and
+        ``control_variate_coefficient`` (beta) for the default procedure.
+
+    Raises
+    ------
+    ValueError
+        ``spp < 2`` for the default procedure; K not below the measured cells.
     """
     timer = timer or PhaseTimer()
+    if not thesis_faithful and samples.spp < 2:
+        raise ValueError(f"cosamp splits each pixel's samples in two folds and needs spp >= 2, got {samples.spp}")
     width, height = samples.resolution
     upscale = (width // grid_shape[0], height // grid_shape[1])
+    size = math.prod(grid_shape)
+    details = {"gamma": gamma, "sparsity": sparsity, "thesis_faithful": bool(thesis_faithful),
+               "nonfinite_samples": samples.nonfinite}
     with timer("other"):
-        cells, means, _ = cell_means(samples, math.prod(grid_shape))
         pixel_rgb = samples.pixel_means().astype(np.float64)
-    with timer("reconstruction"):
-        reconstruction, result = reconstruct_luminance(cells, means, grid_shape, gamma=gamma, sparsity=sparsity)
-    with timer("integration"):
-        integral = pixel_integral(reconstruction, upscale)
         pixel_chroma = chroma(pixel_rgb)
-        if thesis_faithful:
-            image = integral[..., None] * pixel_chroma
-        else:
-            at_samples = samples.pixel_means_of(reconstruction.reshape(-1)[samples.cells])
-            image = pixel_rgb + pixel_chroma * (integral - at_samples)[..., None]
-    details = {
-        "gamma": gamma,
-        "sparsity": sparsity,
-        "thesis_faithful": bool(thesis_faithful),
-        "measured_cells": int(cells.size),
-        "cosamp_iterations": result.iterations,
-        "cosamp_stop_reason": result.stop_reason,
-        "cosamp_relative_residual": result.relative_residual,
-        "nonfinite_samples": samples.nonfinite,
-    }
+    if thesis_faithful:
+        with timer("other"):
+            cells, means, _ = cell_means(samples, size)
+        with timer("reconstruction"):
+            reconstruction, result = reconstruct_luminance(cells, means, grid_shape, gamma=gamma, sparsity=sparsity)
+        with timer("integration"):
+            image = pixel_integral(reconstruction, upscale)[..., None] * pixel_chroma
+        details.update(measured_cells=int(cells.size), cosamp_iterations=result.iterations,
+                       cosamp_stop_reason=result.stop_reason, cosamp_relative_residual=result.relative_residual)
+        return image.astype(np.float32), details
+
+    correction = np.zeros((height, width))
+    covariance = variance = 0.0
+    folds = []
+    for train_fold in (0, 1):
+        with timer("other"):
+            train, test = samples.fold(train_fold), samples.fold(1 - train_fold)
+            cells, means, _ = cell_means(train, size)
+        with timer("reconstruction"):
+            reconstruction, result = reconstruct_luminance(cells, means, grid_shape, gamma=gamma, sparsity=sparsity)
+        with timer("integration"):
+            at_samples = reconstruction.reshape(-1)[test.cells].astype(np.float64).reshape(-1, test.spp)
+            level = luminance(test.values).astype(np.float64).reshape(-1, test.spp)
+            centred = at_samples - at_samples.mean(axis=1, keepdims=True)
+            covariance += float(np.sum(centred * (level - level.mean(axis=1, keepdims=True))))
+            variance += float(np.sum(centred * centred))
+            correction += 0.5 * (pixel_integral(reconstruction, upscale)
+                                 - at_samples.mean(axis=1).reshape(height, width))
+        folds.append({"measured_cells": int(cells.size), "cosamp_iterations": result.iterations,
+                      "cosamp_stop_reason": result.stop_reason,
+                      "cosamp_relative_residual": result.relative_residual})
+    with timer("integration"):
+        beta = covariance / variance if variance > 0 else 0.0
+        image = pixel_rgb + beta * pixel_chroma * correction[..., None]
+    details.update(control_variate_coefficient=beta, folds=folds,
+                   cosamp_iterations=sum(fold["cosamp_iterations"] for fold in folds))
     return image.astype(np.float32), details
 
 
@@ -222,10 +261,10 @@ def _warm_budget():
 
 @register
 class Cosamp(_CosampMethod):
-    """CoSaMP reconstruction used as a control variate: the mean of path tracing, less variance where it fits."""
+    """CoSaMP reconstructions as a cross-fitted control variate: the mean of path tracing, less variance where they fit."""
 
     name = "cosamp"
-    description = "CoSaMP 4-D reconstruction (thesis 8.1) as a control variate for the pixel's samples (unbiased)"
+    description = "CoSaMP 4-D reconstruction (thesis 8.1) as a cross-fitted control variate of the pixel's samples (unbiased)"
 
 
 @register

@@ -46,6 +46,14 @@ class PixelSamples:
         width, height = self.resolution
         return self.values.reshape(height, width, self.spp, 3).mean(axis=2, dtype=np.float64).astype(np.float32)
 
+    def fold(self, index, folds=2):
+        """The samples whose index within their pixel is ``index`` modulo ``folds`` (a cross-fitting fold)."""
+        values = self.values.reshape(-1, self.spp, 3)[:, index::folds]
+        cells = self.cells.reshape(-1, self.spp)[:, index::folds]
+        return PixelSamples(values=np.ascontiguousarray(values).reshape(-1, 3),
+                            cells=np.ascontiguousarray(cells).reshape(-1), spp=values.shape[1],
+                            resolution=self.resolution, nonfinite=0)
+
     def pixel_means_of(self, per_sample):
         """Per-pixel mean of any per-sample quantity, shape (height, width)."""
         width, height = self.resolution
