@@ -14,7 +14,7 @@ def run(*arguments):
     return subprocess.run([sys.executable, "-m", "sparselt.cli", *arguments], capture_output=True, text=True)
 
 
-@pytest.mark.parametrize("command", ["scenes", "sample", "render", "show"])
+@pytest.mark.parametrize("command", ["scenes", "sample", "render", "show", "compare", "methods"])
 def test_every_command_has_help(command):
     result = run(command, "--help")
     assert result.returncode == 0 and "usage: sparselt" in result.stdout
@@ -25,6 +25,13 @@ def test_scenes_lists_the_built_in_scenes(capsys):
     listed = capsys.readouterr().out
     for name in ("cornell-box", "cornell-caustics", "dof-sculptures", "courtyard"):
         assert name in listed
+
+
+def test_methods_lists_the_registered_methods(capsys):
+    assert main(["methods"]) == 0
+    listed = capsys.readouterr().out
+    for name in ("pt", "samples-mean", "cosamp", "cosamp-thesis"):
+        assert name + " " in listed
 
 
 def test_sample_then_show(tmp_path, capsys):

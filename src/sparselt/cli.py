@@ -133,7 +133,7 @@ def build_parser():
     compare.add_argument("--kind", required=True, choices=("dof", "indirect", "path"), help="signal kind")
     compare.add_argument("--shape", type=_shape, required=True, help="signal grid of the kind, e.g. 250,250,16,16")
     compare.add_argument("--methods", type=_names, default=("pt", "cosamp"),
-                         help="comma-separated registered methods (default: pt,cosamp; see --list-methods)")
+                         help="comma-separated registered methods (default: pt,cosamp; 'sparselt methods' lists them)")
     compare.add_argument("--spp", type=_shape, default=(40, 81, 163), help="budgets in samples per pixel (default: 40,81,163)")
     compare.add_argument("--seeds", type=_shape, default=(1,), help="seeds, comma separated (default: 1)")
     compare.add_argument("--resolution", type=_shape, default=None, help="output width,height (default: the shape's image axes)")
@@ -147,6 +147,10 @@ def build_parser():
     compare.add_argument("--no-progress", action="store_true", help="hide progress output")
     _add_camera_options(compare)
     compare.set_defaults(handler=_compare)
+
+    methods = commands.add_parser("methods", help="list the comparison methods",
+                                  description="List the registered comparison methods, the kinds they support and what they do.")
+    methods.set_defaults(handler=_list_methods)
 
     show = commands.add_parser("show", help="pictures of a signal", description="Write the integrated image and 2-D slices of a signal as PNGs.")
     show.add_argument("signal", help="signal folder")
@@ -240,6 +244,15 @@ def _compare(arguments):
     result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
     print(result.table())
     print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
+    return 0
+
+
+def _list_methods(arguments):
+    from .methods import get_method, method_names
+
+    for name in method_names():
+        method = get_method(name)
+        print(f"{name:16s} {','.join(method.kinds):22s} {method.description}")
     return 0
 
 

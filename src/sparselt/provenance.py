@@ -17,7 +17,7 @@ import tempfile
 from datetime import datetime, timezone
 from importlib import metadata
 
-PACKAGES = ("sparselt", "numpy", "scipy", "mitsuba", "drjit", "ducc0", "matplotlib", "tqdm")
+PACKAGES = ("sparselt", "numpy", "scipy", "mitsuba", "drjit", "ducc0", "matplotlib", "tqdm", "numba", "pyoidn")
 
 
 def package_versions():

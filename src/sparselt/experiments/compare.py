@@ -41,11 +41,11 @@ from ..analysis.metrics import (
     reference_exposure,
     relative_mean_squared_error,
 )
+from ..checks import check_integer
 from ..images import write_png
 from ..methods import TIME_PHASES, Budget, ComparisonContext, get_method
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
 from ..rendering import mitsuba_backend
-from ..rendering.acquire import check_integer
 from ..rendering.layout import path_layout
 from ..rendering.scenes import get_scene
 from . import compare_report
@@ -341,7 +341,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
             write_json(os.path.join(out, RECORDS, cell_name(method.name, spp, seed) + ".json"),
                        {"row": row, "details": result.details, "seconds": result.seconds})
             if progress:
-                print(f"compare: {method.name:14s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
+                print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
                       f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, luminance x{row['luminance_ratio']:.3f}",
                       file=sys.stderr)
 

@@ -67,11 +67,11 @@ def _mean_curve(rows, quantity):
 
 def results_table(rows):
     """A plain-text table of the rows (what the CLI prints)."""
-    header = f"{'method':14s} {'spp':>5s} {'seed':>4s} {'seconds':>8s} {'SSIM':>6s} {'relMSE':>9s} {'lum.':>6s} {'PT relMSE same t':>16s}"
+    header = f"{'method':18s} {'spp':>5s} {'seed':>4s} {'seconds':>8s} {'SSIM':>6s} {'relMSE':>9s} {'lum.':>6s} {'PT relMSE same t':>16s}"
     lines = [header, "-" * len(header)]
     for row in rows:
         equal = row.get("relmse_pt_equal_time", "")
-        lines.append(f"{row['method']:14s} {row['spp']:5d} {row['seed']:4d} {row['seconds_total']:8.3f} "
+        lines.append(f"{row['method']:18s} {row['spp']:5d} {row['seed']:4d} {row['seconds_total']:8.3f} "
                      f"{row['ssim']:6.3f} {row['relmse']:9.4g} {row['luminance_ratio']:6.3f} "
                      f"{(f'{equal:.4g}' if equal != '' else '-'):>16s}")
     return "\n".join(lines)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 TIME_PHASES = ("sampling", "reconstruction", "integration", "other")
+WARM_UP_SEED = 0xFFFF_FFFF  # never a comparison seed (those are < 2**32 - 1)
 
 
 @dataclass(frozen=True)
@@ -132,9 +133,11 @@ class Method:
             raise ValueError(f"method {self.name!r} does not support kind {context.kind!r}; it supports "
                              f"{', '.join(self.kinds)}")
 
+    warm_up_spp = 1
+
     def warm_up(self, context):
-        """Compile the renderer's kernels: one run at 1 spp, result discarded."""
-        self.run(context, Budget(spp=1, seed=0xFFFF_FFFF))
+        """Compile the renderer's kernels: one run at :attr:`warm_up_spp`, result discarded."""
+        self.run(context, Budget(spp=self.warm_up_spp, seed=WARM_UP_SEED))
 
     def run(self, context, budget):  # pragma: no cover - interface
         raise NotImplementedError

@@ -62,7 +62,7 @@ from ..analysis.threshold import check_gamma
 from ..images import luminance
 from ..operators.partial_fourier import PartialFourier
 from ..recovery.cosamp import cosamp
-from .base import Budget, Method, MethodResult, PhaseTimer
+from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .pixel_samples import cell_means, draw_pixel_samples
 from .registry import register
 
@@ -147,6 +147,13 @@ def chroma(pixel_rgb):
     return ratio
 
 
+def reconstruction_options(context):
+    """``(gamma, K)`` of a comparison: its options, or the defaults (gamma 0.25, K = N / 200)."""
+    gamma = context.options.get("gamma")
+    sparsity = context.options.get("sparsity") or default_sparsity(context.grid_shape)
+    return check_gamma(DEFAULT_GAMMA if gamma is None else gamma), int(sparsity)
+
+
 class _CosampMethod(Method):
     kinds = ("dof", "indirect")
     needs_resolution_multiple = True
@@ -154,15 +161,11 @@ class _CosampMethod(Method):
 
     def warm_up(self, context):
         # The renderer is the only part with kernels to compile; CoSaMP is numpy and FFTs.
-        draw_pixel_samples(context, _warm_budget())
+        draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED))
 
     def options(self, context):
-        gamma = context.options.get("gamma")
-        if gamma is None:
-            gamma = DEFAULT_GAMMA
-        sparsity = context.options.get("sparsity") or default_sparsity(context.grid_shape)
-        faithful = self.thesis_faithful or bool(context.options.get("thesis_faithful", False))
-        return check_gamma(gamma), int(sparsity), faithful
+        gamma, sparsity = reconstruction_options(context)
+        return gamma, sparsity, self.thesis_faithful or bool(context.options.get("thesis_faithful", False))
 
     def run(self, context, budget):
         gamma, sparsity, faithful = self.options(context)
@@ -253,10 +256,6 @@ def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=
     details.update(control_variate_coefficient=beta, folds=folds,
                    cosamp_iterations=sum(fold["cosamp_iterations"] for fold in folds))
     return image.astype(np.float32), details
-
-
-def _warm_budget():
-    return Budget(spp=1, seed=0xFFFF_FFFF)
 
 
 @register

@@ -37,3 +37,4 @@ def _load_builtin():
     from . import path_tracing  # noqa: F401,I001  (they register, in this order)
     from . import samples_mean  # noqa: F401
     from . import cosamp_reconstruction  # noqa: F401
+    from . import filtered  # noqa: F401

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import check_integer  # noqa: F401  (re-exported: callers import it from here)
 from ..provenance import environment_record, read_json, write_json
 from ..signal import (
     DATA_FILE,
@@ -94,15 +95,6 @@ class AcquisitionConfig:
         record = dataclasses.asdict(self)
         record["shape"] = list(self.shape)
         return record
-
-
-def check_integer(name, value, minimum, maximum=None):
-    """Raise a ValueError naming ``name`` unless ``value`` is an integer in ``[minimum, maximum]``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ValueError(f"{name} must be an integer, got {value!r}")
-    if value < minimum or (maximum is not None and value > maximum):
-        allowed = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
-        raise ValueError(f"{name} must be {allowed}, got {value}")
 
 
 def validate_config(config):

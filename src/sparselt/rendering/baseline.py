@@ -14,7 +14,7 @@ import numpy as np
 
 from ..images import write_png
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
-from .acquire import check_integer
+from ..checks import check_integer
 from .scenes import get_scene
 
 

@@ -448,6 +448,35 @@ class MitsubaScene:
         dr.sync_thread()
         return array, time.perf_counter() - start
 
+    def render_aovs(self, spp, seed=0):
+        """Albedo, shading normal and depth from Mitsuba's ``aov`` integrator (the denoisers' feature buffers).
+
+        Same camera, film and box filter as :meth:`render_path`; ``spp``
+        samples per pixel, so the buffers are anti-aliased and, for a thin
+        lens, blurred by the aperture like the image.
+
+        Returns
+        -------
+        buffers : dict
+            ``albedo`` (height, width, 3), ``normal`` (height, width, 3, world
+            space, not renormalised after averaging), ``depth`` (height, width):
+            float32.
+        seconds : float
+            Wall time, synchronised with ``dr.sync_thread``.
+        """
+        integrator = mi.load_dict({"type": "aov", "aovs": "albedo:albedo,normal:sh_normal,depth:depth"})
+        dr.sync_thread()
+        start = time.perf_counter()
+        image = mi.render(self.scene, sensor=self.sensor, integrator=integrator, spp=int(spp), seed=int(seed))
+        array = np.array(image, dtype=np.float32)
+        dr.sync_thread()
+        seconds = time.perf_counter() - start
+        channels = array.shape[-1]
+        if channels < 7:
+            raise RuntimeError(f"Mitsuba's aov integrator returned {channels} channels, expected albedo, normal and depth (7)")
+        buffers = {"albedo": array[..., -7:-4], "normal": array[..., -4:-1], "depth": array[..., -1]}
+        return buffers, seconds
+
 
 def _power_heuristic(pdf_a, pdf_b):
     a2 = dr.square(pdf_a)
