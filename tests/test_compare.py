@@ -62,7 +62,7 @@ def test_results_csv_columns_rows_and_seconds(finished):
 
 def test_outputs_and_provenance(finished):
     out, config, _ = finished
-    for name in ("quality_vs_time.png", "image_grid.png", "table_8.md", "compare.json"):
+    for name in ("quality_vs_time.png", "image_grid.png", "crop_grid.png", "table_8.md", "compare.json"):
         assert (out / name).stat().st_size > 0
     for method in config.methods:
         for suffix in (".exr", ".png"):

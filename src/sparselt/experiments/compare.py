@@ -15,7 +15,8 @@ Output folder::
                             what a rerun resumes from
     images/                 EXR + PNG per method, spp and seed, and the reference
     quality_vs_time.png     SSIM and relMSE against seconds (Figures 8.1/8.3)
-    image_grid.png          every method at matched time (Figures 8.2/8.4)
+    image_grid.png          every method at matched time (Figures 8.2/8.4, 8.7/8.9)
+    crop_grid.png           detail crops where the methods differ most, at matched time
     table_8.md              time per phase (Tables 8.1/8.2), thesis numbers beside
 
 Every file is written atomically; a rerun with the same comparison skips the
@@ -353,6 +354,9 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     compare_report.plot_image_grid(os.path.join(out, "image_grid.png"), rows, reference,
                                    lambda row: os.path.join(out, IMAGES, cell_name(row["method"], row["spp"],
                                                                                    row["seed"]) + ".npy"))
+    compare_report.plot_crop_grid(os.path.join(out, "crop_grid.png"), rows, reference,
+                                  lambda row: os.path.join(out, IMAGES, cell_name(row["method"], row["spp"],
+                                                                                  row["seed"]) + ".npy"))
     compare_report.write_table_8(os.path.join(out, "table_8.md"), rows, spec.name, config)
     report_seconds = time.perf_counter() - report_start
     total = time.perf_counter() - started

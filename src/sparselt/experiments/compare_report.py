@@ -180,3 +180,64 @@ def write_table_8(path, rows, scene, config):
             lines.append(line)
         lines.append("")
     atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+
+
+def disagreement_crops(images, size, count=3):
+    """Top-left corners of ``count`` non-overlapping ``size`` x ``size`` windows where the images differ most.
+
+    The disagreement is the per-pixel standard deviation across ``images``
+    (display values), summed over a window; windows lie on a half-window grid.
+    The reference plays no part in the choice.
+    """
+    stack = np.stack(images)
+    spread = stack.std(axis=0).mean(axis=-1)
+    height, width = spread.shape
+    step = max(1, size // 2)
+    candidates = []
+    for top in range(0, max(1, height - size + 1), step):
+        for left in range(0, max(1, width - size + 1), step):
+            candidates.append((float(spread[top:top + size, left:left + size].sum()), top, left))
+    candidates.sort(reverse=True)
+    chosen = []
+    for _, top, left in candidates:
+        if all(abs(top - t) >= size or abs(left - l) >= size for t, l in chosen):
+            chosen.append((top, left))
+        if len(chosen) == count:
+            break
+    return chosen
+
+
+def plot_crop_grid(path, rows, reference, image_path):
+    """Detail crops (rows) of the reference and every method at matched time (columns), where they differ most."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+
+    from ..analysis.metrics import reference_exposure
+
+    if not rows:
+        return
+    matched, target = matched_rows(rows)
+    exposure = reference_exposure(reference)
+    displays = [srgb_tonemap(np.load(image_path(row)), exposure) for row in matched]
+    height, width = reference.shape[:2]
+    size = max(8, min(height, width) // 4)
+    crops = disagreement_crops(displays, size)
+    columns = len(matched) + 1
+    figure, axes = pyplot.subplots(len(crops), columns, figsize=(2.2 * columns, 2.3 * len(crops) + 0.4),
+                                   squeeze=False)
+    pictures = [srgb_tonemap(reference, exposure)] + displays
+    titles = ["reference"] + [f"{row['method']}\n{row['spp']} spp, {row['seconds_total']:.2f} s" for row in matched]
+    for line, (top, left) in enumerate(crops):
+        for column, picture in enumerate(pictures):
+            axis = axes[line][column]
+            axis.imshow(picture[top:top + size, left:left + size], interpolation="nearest")
+            axis.set_xticks([])
+            axis.set_yticks([])
+            if line == 0:
+                axis.set_title(titles[column], fontsize=8)
+        axes[line][0].set_ylabel(f"x {left}, y {top}", fontsize=8)
+    figure.suptitle(f"detail crops where the methods differ most, matched time about {target:.2f} s", fontsize=9)
+    figure.tight_layout()
+    save_figure(figure, path, dpi=110)
