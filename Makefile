@@ -20,7 +20,7 @@ demo: $(STAMP)
 	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,16,16 --spp 16 --seed 1 --out $(DEMO)/signal --overwrite
 	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures
 	$(BIN)/sparselt analyze $(DEMO)/signal --out $(DEMO)/analysis --overwrite
-	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis --spp 16,40,81 --reference-spp 1024 --gamma 0.25 --out $(DEMO)/compare --overwrite
+	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis,bilateral,cosamp-bilateral,oidn --spp 16,40,81 --reference-spp 1024 --gamma 0.25 --out $(DEMO)/compare --overwrite
 	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, comparison in $(DEMO)/compare (table_8.md, quality_vs_time.png, image_grid.png)"
 
 bench: $(STAMP)
@@ -29,6 +29,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/cosamp.py
 	$(BIN)/python benchmarks/sft.py
 	$(BIN)/python benchmarks/compare_overhead.py
+	$(BIN)/python benchmarks/filters.py
+	$(BIN)/python benchmarks/guided_throughput.py
 	$(BIN)/sparselt bench integrate --out out/bench-integrate --overwrite
 
 clean:

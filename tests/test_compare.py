@@ -233,3 +233,15 @@ def test_cosamp_control_variate_is_unbiased(tmp_path, cache):
     standard_error = differences.std(ddof=1) / math.sqrt(len(seeds))
     assert standard_error > 0
     assert abs(differences.mean()) < 4 * standard_error, differences
+
+
+def test_noise_sigma_is_the_median_standard_error_of_the_pixel_means():
+    from sparselt.methods.filtered import noise_sigma
+
+    rng = np.random.default_rng(12)
+    values = (rng.random((6 * 5 * 7, 3)) ** 3).astype(np.float32)
+    samples = PixelSamples(values=values, cells=np.zeros(len(values), dtype=np.int64), spp=7, resolution=(6, 5),
+                           nonfinite=0)
+    per_pixel = values.reshape(5, 6, 7, 3).astype(np.float64)
+    expected = np.median(np.sqrt(per_pixel.var(axis=2, ddof=1).sum(axis=-1) / 7))
+    assert noise_sigma(samples) == pytest.approx(expected, rel=1e-9)

@@ -142,6 +142,12 @@ def build_parser():
     compare.add_argument("--gamma", type=float, default=None, help="gamma of eq. 7.1 for CoSaMP (default 0.25; thesis: 0.25 DoF, 0.5 architecture)")
     compare.add_argument("--sparsity", type=int, default=None, help="K for CoSaMP (default N/200)")
     compare.add_argument("--thesis-faithful", action="store_true", help="make 'cosamp' follow thesis 8.1.1 exactly")
+    compare.add_argument("--map-spp", type=int, default=None, help="guided methods: pilot samples per map pixel (default 16)")
+    compare.add_argument("--defensive", type=float, default=None, help="guided methods: weight of the uniform density (default 0.1)")
+    compare.add_argument("--guiding-mode", choices=("per-pixel", "global"), default=None,
+                         help="guided methods: per-pixel conditional (default) or global cells")
+    compare.add_argument("--caustic-mask", action="store_true",
+                         help="also report relMSE inside a caustic mask (bright spots on diffuse surfaces)")
     compare.add_argument("--out", required=True, help="output folder (rerun to resume)")
     compare.add_argument("--overwrite", action="store_true", help="replace a folder holding another comparison")
     compare.add_argument("--no-progress", action="store_true", help="hide progress output")
@@ -155,6 +161,7 @@ def build_parser():
     show = commands.add_parser("show", help="pictures of a signal", description="Write the integrated image and 2-D slices of a signal as PNGs.")
     show.add_argument("signal", help="signal folder")
     show.add_argument("--out", required=True, help="output folder")
+    show.add_argument("--overwrite", action="store_true", help="replace files in an existing output folder")
     show.set_defaults(handler=_show)
     return parser
 
@@ -240,7 +247,8 @@ def _compare(arguments):
         resolution=tuple(arguments.resolution) if arguments.resolution else None,
         reference_spp=arguments.reference_spp, max_depth=arguments.max_depth, aperture=arguments.aperture,
         focus_distance=arguments.focus_distance, gamma=arguments.gamma, sparsity=arguments.sparsity,
-        thesis_faithful=arguments.thesis_faithful, variant=arguments.variant)
+        thesis_faithful=arguments.thesis_faithful, map_spp=arguments.map_spp, defensive=arguments.defensive,
+        guiding_mode=arguments.guiding_mode, caustic_mask=arguments.caustic_mask, variant=arguments.variant)
     result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
     print(result.table())
     print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
@@ -257,13 +265,30 @@ def _list_methods(arguments):
 
 
 def _show(arguments):
+    from .provenance import check_output_folder
     from .signal import load_signal
     from .visualize import show_signal
 
     signal = load_signal(arguments.signal)
+    check_output_folder(arguments.out, overwrite=arguments.overwrite)
     for path in show_signal(signal, arguments.out):
         print(f"wrote {path}")
     return 0
+
+
+def _describe(error):
+    """A one-line message for an error; operating-system errors say what failed on which path."""
+    if isinstance(error, OSError) and error.strerror:  # raised by the operating system, not by sparselt
+        reason = error.strerror or type(error).__name__
+        target = f" {error.filename!r}" if error.filename else ""
+        hints = {30: "the file system is read-only: choose an output folder on a writable disk",
+                 28: "the disk is full: free space or choose another disk",
+                 20: "a part of the path is a file, not a folder",
+                 21: "the path is a folder, not a file",
+                 13: "no permission to write there"}
+        hint = hints.get(error.errno, "")
+        return f"{reason}:{target}" + (f" ({hint})" if hint else "")
+    return str(error)
 
 
 def main(argv=None):
@@ -271,8 +296,8 @@ def main(argv=None):
     arguments = parser.parse_args(argv)
     try:
         return arguments.handler(arguments)
-    except (ValueError, PermissionError, FileNotFoundError, RuntimeError) as error:
-        print(f"sparselt {arguments.command}: error: {error}", file=sys.stderr)
+    except (ValueError, TypeError, RuntimeError, OSError) as error:
+        print(f"sparselt {arguments.command}: error: {_describe(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"sparselt {arguments.command}: interrupted; finished chunks are kept, rerun to resume", file=sys.stderr)

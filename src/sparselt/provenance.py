@@ -88,8 +88,23 @@ def write_json(path, record):
 
 
 def read_json(path):
+    """Read a JSON file; a corrupt one is a ValueError naming the file and the position."""
     with open(path, encoding="utf-8") as handle:
-        return json.load(handle)
+        try:
+            return json.load(handle)
+        except json.JSONDecodeError as error:
+            raise ValueError(f"{path!r} is not valid JSON ({error.msg} at line {error.lineno}, column {error.colno}); "
+                             "the file is corrupt: restore it or remove the folder") from None
+
+
+def format_bytes(count):
+    """A byte count for people: '512 B', '3.4 MB', '1.2 GB' (never '0.0 GB')."""
+    count = float(count)
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if abs(count) < 1000 or unit == "TB":
+            return f"{count:.0f} {unit}" if unit == "B" else f"{count:.1f} {unit}"
+        count /= 1000
+    return f"{count:.1f} TB"
 
 
 def _json_default(value):
@@ -128,5 +143,7 @@ def check_output_folder(path, *, overwrite, marker=None):
     probe = path if os.path.isdir(path) else parent
     while not os.path.exists(probe):
         probe = os.path.dirname(probe)
+    if not os.path.isdir(probe):
+        raise ValueError(f"output folder {path!r} cannot be created: {probe!r} is a file, not a folder")
     if not os.access(probe, os.W_OK | os.X_OK):
         raise PermissionError(f"output folder {path!r} is not writable (no write permission on {probe!r})")

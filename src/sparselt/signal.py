@@ -144,7 +144,11 @@ def load_signal(path, *, mmap=True):
         raise IncompleteSignalError(
             f"signal {path!r} is incomplete ({done} finished); rerun the same 'sparselt sample' command to resume it"
         )
-    data = np.load(data_path, mmap_mode="r" if mmap else None)
+    try:
+        data = np.load(data_path, mmap_mode="r" if mmap else None, allow_pickle=False)
+    except (ValueError, EOFError, OSError) as error:
+        raise ValueError(f"the data file {data_path!r} is empty or corrupt ({error}); "
+                         "resample the signal with 'sparselt sample --overwrite'") from None
     expected = tuple(meta["shape"]) + (3,)
     if data.shape != expected:
         raise ValueError(f"signal data in {path!r} has shape {data.shape}, metadata says {expected}")

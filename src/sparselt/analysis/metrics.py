@@ -244,6 +244,9 @@ def structural_similarity(image, reference, *, data_range=None, channel_axis=Non
             f"got image sides {tuple(spatial_shape)}"
         )
 
+    # SSIM is invariant to scaling both images and L together: work in units of L, so that squares of
+    # huge values (data ranges near 1e300) cannot overflow.
+    image, reference, data_range = image / data_range, reference / data_range, 1.0
     if channel_axis is None:
         ssim_map = _ssim_map(image, reference, data_range)
         mean = _cropped_mean(ssim_map)

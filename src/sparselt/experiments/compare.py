@@ -18,6 +18,8 @@ Output folder::
     image_grid.png          every method at matched time (Figures 8.2/8.4, 8.7/8.9)
     crop_grid.png           detail crops where the methods differ most, at matched time
     table_8.md              time per phase (Tables 8.1/8.2), thesis numbers beside
+    equal_time.md           relMSE and SSIM of each method over PT's at the same time
+    table_6.md              guided methods: Tables 6.2/6.3 layout (image size, spp, guided and PT time)
 
 Every file is written atomically; a rerun with the same comparison skips the
 finished cells, and may add methods, budgets or seeds.
@@ -47,6 +49,7 @@ from ..images import write_png
 from ..methods import TIME_PHASES, Budget, ComparisonContext, get_method
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
 from ..rendering import mitsuba_backend
+from ..rendering.baseline import check_wavefront
 from ..rendering.layout import path_layout
 from ..rendering.scenes import get_scene
 from . import compare_report
@@ -55,7 +58,7 @@ KINDS = ("dof", "indirect", "path")
 RELMSE_EPSILON = 0.01
 RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", "seconds_reconstruction",
                   "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
-EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time")
+EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time")
 CONFIG_FILE = "compare.json"
 RECORDS = "records"
 IMAGES = "images"
@@ -97,6 +100,12 @@ class ComparisonConfig:
         ``K`` for the CoSaMP methods (default ``N / 200``).
     thesis_faithful : bool
         Make ``cosamp`` follow thesis 8.1.1 exactly (as ``cosamp-thesis``).
+    map_spp, defensive, guiding_mode : int, float, str or None
+        Guided methods: pilot samples per map cell of the image plane (default
+        16), weight of the uniform density (default 0.1), 'per-pixel'
+        (default) or 'global'.
+    caustic_mask : bool
+        Also report ``relmse_caustic``: relMSE inside :func:`caustic_mask`.
     variant : str
         Mitsuba variant.
     """
@@ -116,6 +125,10 @@ class ComparisonConfig:
     gamma: float | None = None
     sparsity: int | None = None
     thesis_faithful: bool = False
+    map_spp: int | None = None
+    defensive: float | None = None
+    guiding_mode: str | None = None
+    caustic_mask: bool = False
     variant: str = "llvm_ad_rgb"
 
     @property
@@ -134,7 +147,8 @@ class ComparisonConfig:
         return {key: value for key, value in self.record().items() if key not in EXTENSIBLE}
 
     def method_options(self):
-        return {"gamma": self.gamma, "sparsity": self.sparsity, "thesis_faithful": self.thesis_faithful}
+        return {"gamma": self.gamma, "sparsity": self.sparsity, "thesis_faithful": self.thesis_faithful,
+                "map_spp": self.map_spp, "defensive": self.defensive, "guiding_mode": self.guiding_mode}
 
 
 @dataclass
@@ -189,16 +203,24 @@ def validate_config(config):
         if method.needs_resolution_multiple and any(r % s for r, s in zip(resolution, config.shape[:2])):
             raise ValueError(f"method {method.name!r} needs --resolution to be a multiple of the shape's image axes "
                              f"{tuple(config.shape[:2])}; got {resolution}")
+    if config.map_spp is not None:
+        check_integer("map spp", config.map_spp, 1, 2**16 - 1)
+    if config.defensive is not None and not (isinstance(config.defensive, (int, float)) and 0 <= config.defensive <= 1):
+        raise ValueError(f"defensive must be in [0, 1], got {config.defensive!r}")
+    if config.guiding_mode not in (None, "per-pixel", "global"):
+        raise ValueError(f"guiding mode must be 'per-pixel' or 'global', got {config.guiding_mode!r}")
+    for spp in config.spps:
+        check_wavefront(resolution, spp)
     if min(resolution) < 11:
         raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
     spec = get_scene(config.scene).with_lens(config.aperture, config.focus_distance)
     if spec.camera is not None:
-        _check_layout(config, spec.resolved_camera().thin_lens)
+        _check_layout(config, spec.resolved_camera().thin_lens, spec.hide_emitters)
     return spec
 
 
-def _check_layout(config, thin_lens):
-    layout = path_layout(config.kind, config.max_depth, thin_lens=thin_lens)
+def _check_layout(config, thin_lens, hide_emitters=False):
+    layout = path_layout(config.kind, config.max_depth, thin_lens=thin_lens, hide_emitters=hide_emitters)
     if len(config.shape) != len(layout.axes):
         raise ValueError(f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max "
                          f"depth {config.max_depth} has {len(layout.axes)}: {', '.join(layout.axes)}")
@@ -212,7 +234,7 @@ def _prepare_folder(out, config, overwrite):
     config_path = os.path.join(out, CONFIG_FILE)
     if os.path.isfile(config_path):
         previous = read_json(config_path)
-        if previous.get("config", {}).get("identity") == config.identity():
+        if _same_comparison(previous.get("config", {}).get("identity") or {}, config):
             return previous
         if not overwrite:
             raise ValueError(f"{out!r} holds another comparison (scene {previous.get('config', {}).get('scene')!r}, "
@@ -230,6 +252,13 @@ def _prepare_folder(out, config, overwrite):
     return None
 
 
+def _same_comparison(recorded, config):
+    """Whether a recorded identity is ``config``'s; settings added since it was written count as their defaults."""
+    defaults = ComparisonConfig(scene=config.scene, kind=config.kind, shape=config.shape).identity()
+    current = config.identity()
+    return all(recorded.get(key, defaults.get(key)) == value for key, value in current.items())
+
+
 def _clear(out):
     for name in os.listdir(out):
         path = os.path.join(out, name)
@@ -243,14 +272,65 @@ def cell_name(method, spp, seed):
     return f"{method}_spp{spp}_seed{seed}"
 
 
-def quality(image, reference):
-    """SSIM (the project's HDR convention), relMSE (epsilon 0.01), luminance and contrast ratios."""
-    return {
+SPECULAR_BSDFS = ("conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric", "plastic",
+                  "roughplastic")
+
+
+def _without_specular(value):
+    """A scene dictionary whose specular and glossy BSDFs are replaced by a grey diffuse one."""
+    if isinstance(value, dict):
+        if value.get("type") in SPECULAR_BSDFS:
+            return {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
+        return {key: _without_specular(item) for key, item in value.items()}
+    return value
+
+
+def caustic_mask(loaded, reference, *, spp, max_depth, seed=0, fraction=0.3):
+    """Pixels lit by caustics: where removing every specular BSDF darkens a surface that stays the same.
+
+    The scene is rendered again with its conductors and dielectrics made
+    diffuse (no caustic can form) at ``spp``; a pixel is in the mask when the
+    surface it sees is unchanged (same albedo in both scenes, so not one of
+    the replaced objects) and the caustic-free render is darker than the
+    reference by more than ``fraction`` of the reference. Only the reference
+    and the two scenes enter it; no method's image does. Built-in scenes
+    only (a scene file's BSDFs are not rewritten).
+    """
+    from ..rendering.scenes import SceneSpec
+
+    spec = loaded.spec
+    if spec.objects is None:
+        raise ValueError("the caustic mask needs a built-in scene (a scene file's materials are not rewritten)")
+    plain = SceneSpec(name=spec.name + "-diffuse", description="specular BSDFs made diffuse",
+                      objects=_without_specular(spec.objects), camera=spec.camera, lens_overrides=spec.lens_overrides,
+                      hide_emitters=spec.hide_emitters)
+    other = mitsuba_backend.MitsubaScene(plain, (loaded.width, loaded.height))
+    without, _ = other.render_path(spp, max_depth, seed)
+    albedo, _ = loaded.render_aovs(16, seed)
+    albedo_plain, _ = other.render_aovs(16, seed)
+    from ..images import luminance
+
+    same_surface = np.abs(luminance(albedo["albedo"]) - luminance(albedo_plain["albedo"])) < 0.02
+    level, level_without = luminance(reference), luminance(without)
+    return same_surface & (level - level_without > fraction * level) & (level > 0)
+
+
+def quality(image, reference, mask=None):
+    """SSIM (the project's HDR convention), relMSE (epsilon 0.01), luminance and contrast ratios.
+
+    With a boolean ``mask`` (height, width), also ``relmse_caustic``: the
+    relMSE over the masked pixels only.
+    """
+    record = {
         "ssim": image_ssim(image, reference),
         "relmse": relative_mean_squared_error(image, reference, epsilon=RELMSE_EPSILON),
         "luminance_ratio": luminance_ratio(image, reference),
         "contrast_ratio": contrast_ratio(image, reference),
     }
+    if mask is not None:
+        record["relmse_caustic"] = (relative_mean_squared_error(image[mask][None], reference[mask][None],
+                                                                epsilon=RELMSE_EPSILON) if mask.any() else "")
+    return record
 
 
 def compare(config, out, *, overwrite=False, progress=True, cache_directory=None):
@@ -293,7 +373,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     load_start = time.perf_counter()
     loaded = mitsuba_backend.MitsubaScene(spec, config.output_resolution, variant=config.variant)
     load_seconds = time.perf_counter() - load_start
-    layout = _check_layout(config, loaded.camera.thin_lens)
+    layout = _check_layout(config, loaded.camera.thin_lens, spec.hide_emitters)
     context = ComparisonContext(scene=loaded, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
                                 resolution=config.output_resolution, max_depth=config.max_depth,
                                 options=config.method_options())
@@ -311,6 +391,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     record["method_descriptions"] = {method.name: method.description for method in methods}
     record.setdefault("warm_up_seconds", {})
     record["relmse_epsilon"] = RELMSE_EPSILON
+    record["hide_emitters"] = spec.hide_emitters
     record["status"] = "running"
     write_json(os.path.join(out, CONFIG_FILE), record)
 
@@ -321,6 +402,12 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     reference_seconds = time.perf_counter() - reference_start
     exposure = reference_exposure(reference)
     _write_image(out, "reference", reference, exposure)
+    mask = None
+    if config.caustic_mask:
+        mask = caustic_mask(loaded, reference, spp=min(config.reference_spp, 1024), max_depth=config.max_depth,
+                            seed=config.reference_seed)
+        write_png(os.path.join(out, IMAGES, "caustic_mask.png"), np.repeat(mask[..., None], 3, axis=2).astype(np.float32))
+        record["caustic_mask_pixels"] = int(mask.sum())
     record["reference"] = {key: reference_record[key] for key in ("key", "seconds", "cached", "path")}
 
     method_seconds = 0.0
@@ -337,7 +424,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
             run_start = time.perf_counter()
             result = method.run(context, Budget(spp=spp, seed=seed))
             method_seconds += time.perf_counter() - run_start
-            row = _row(method.name, spp, seed, result, reference)
+            row = _row(method.name, spp, seed, result, reference, mask)
             _write_image(out, cell_name(method.name, spp, seed), result.image, exposure)
             write_json(os.path.join(out, RECORDS, cell_name(method.name, spp, seed) + ".json"),
                        {"row": row, "details": result.details, "seconds": result.seconds})
@@ -346,7 +433,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
                       f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, luminance x{row['luminance_ratio']:.3f}",
                       file=sys.stderr)
 
-    rows = _load_rows(out, config)
+    rows = _load_rows(out, record["config"]["methods"])
     compare_report.add_equal_time_columns(rows)
     report_start = time.perf_counter()
     compare_report.write_results_csv(os.path.join(out, "results.csv"), rows, RESULT_COLUMNS + EXTRA_COLUMNS)
@@ -358,6 +445,8 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
                                   lambda row: os.path.join(out, IMAGES, cell_name(row["method"], row["spp"],
                                                                                   row["seed"]) + ".npy"))
     compare_report.write_table_8(os.path.join(out, "table_8.md"), rows, spec.name, config)
+    compare_report.write_equal_time_table(os.path.join(out, "equal_time.md"), rows, RELMSE_EPSILON)
+    compare_report.write_table_6(os.path.join(out, "table_6.md"), rows, spec.name, config)
     report_seconds = time.perf_counter() - report_start
     total = time.perf_counter() - started
     harness = max(0.0, total - method_seconds - reference_seconds)
@@ -370,14 +459,14 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
                             overhead_fraction=record["harness_overhead_fraction"])
 
 
-def _row(name, spp, seed, result, reference):
+def _row(name, spp, seed, result, reference, mask=None):
     seconds = {phase: float(result.seconds.get(phase, 0.0)) for phase in TIME_PHASES}
     row = {"method": name, "spp": spp, "seed": seed, "seconds_total": sum(seconds.values())}
     row.update({f"seconds_{phase}": value for phase, value in seconds.items()})
     row["path_samples"] = int(result.path_samples)
     if not np.all(np.isfinite(result.image)):
         raise ValueError(f"method {name!r} produced NaN or infinite pixels at spp {spp}, seed {seed}")
-    row.update(quality(result.image, reference))
+    row.update(quality(result.image, reference, mask))
     return row
 
 
@@ -392,10 +481,10 @@ def _write_image(out, name, image, exposure):
     write_png(os.path.join(folder, name + ".png"), image, exposure=exposure)
 
 
-def _load_rows(out, config):
+def _load_rows(out, methods):
     """Every finished cell in the folder: this run's and those of earlier runs of the same comparison."""
     rows = [read_json(os.path.join(out, RECORDS, name))["row"]
             for name in os.listdir(os.path.join(out, RECORDS)) if name.endswith(".json")]
-    order = {name: index for index, name in enumerate(config.methods)}
+    order = {name: index for index, name in enumerate(methods)}
     rows.sort(key=lambda row: (order.get(row["method"], len(order)), row["method"], row["seed"], row["spp"]))
     return rows

@@ -39,20 +39,58 @@ def write_results_csv(path, rows, columns):
 
 
 def add_equal_time_columns(rows):
-    """Add ``relmse_pt_equal_time``: PT's relMSE at the row's time (log-log interpolation of PT's runs).
+    """Add ``relmse_pt_equal_time`` and ``ssim_pt_equal_time``: PT's quality at the row's time.
 
-    Empty where PT was not run or the time is outside PT's measured range.
-    Averaged over seeds first.
+    Log-log interpolation of PT's runs (relMSE), log-time for SSIM, after
+    averaging PT over seeds. Empty where PT was not run or the time is outside
+    PT's measured range: nothing is extrapolated.
     """
-    pt = _mean_curve([row for row in rows if row["method"] == "pt"], "relmse")
+    curves = {quantity: _mean_curve([row for row in rows if row["method"] == "pt"], quantity)
+              for quantity in ("relmse", "ssim")}
     for row in rows:
-        row["relmse_pt_equal_time"] = ""
-        if row["method"] == "pt" or len(pt) < 2:
+        for quantity, curve in curves.items():
+            key = f"{quantity}_pt_equal_time"
+            row[key] = ""
+            if row["method"] == "pt" or len(curve) < 2:
+                continue
+            times, values = zip(*curve)
+            time = row["seconds_total"]
+            if times[0] <= time <= times[-1]:
+                if quantity == "relmse":
+                    row[key] = float(np.exp(np.interp(np.log(time), np.log(times), np.log(values))))
+                else:
+                    row[key] = float(np.interp(np.log(time), np.log(times), values))
+
+
+def write_equal_time_table(path, rows, epsilon):
+    """``equal_time.md``: per method and spp (mean over seeds), relMSE and SSIM against PT's at the same time.
+
+    relMSE ratio < 1 and SSIM ratio > 1 mean the method beats path tracing at
+    equal time; '-' where PT's runs do not reach that time.
+    """
+    lines = ["# Equal-time quality against path tracing", "",
+             f"PT's relMSE and SSIM interpolated at each method's total time (mean over seeds; relMSE epsilon = "
+             f"{epsilon}). relMSE ratio < 1 and SSIM ratio > 1: better than PT at equal time.", "",
+             "| method | spp | seconds | relMSE | PT relMSE same time | relMSE ratio | SSIM | PT SSIM same time | "
+             "SSIM ratio | luminance ratio |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for method in dict.fromkeys(row["method"] for row in rows):
+        if method == "pt":
             continue
-        times, values = zip(*pt)
-        time = row["seconds_total"]
-        if times[0] <= time <= times[-1]:
-            row["relmse_pt_equal_time"] = float(np.exp(np.interp(np.log(time), np.log(times), np.log(values))))
+        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
+            group = [row for row in rows if row["method"] == method and row["spp"] == spp]
+            mean = {key: float(np.mean([row[key] for row in group]))
+                    for key in ("seconds_total", "relmse", "ssim", "luminance_ratio")}
+            pt_relmse = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") != ""]
+            pt_ssim = [row["ssim_pt_equal_time"] for row in group if row.get("ssim_pt_equal_time") != ""]
+            if len(pt_relmse) == len(group):
+                reference_relmse, reference_ssim = float(np.mean(pt_relmse)), float(np.mean(pt_ssim))
+                cells = (f"{reference_relmse:.4g} | {mean['relmse'] / reference_relmse:.2f} | {mean['ssim']:.3f} | "
+                         f"{reference_ssim:.3f} | {mean['ssim'] / reference_ssim:.2f}")
+            else:
+                cells = f"- | - | {mean['ssim']:.3f} | - | -"
+            lines.append(f"| {method} | {spp} | {mean['seconds_total']:.3f} | {mean['relmse']:.4g} | {cells} | "
+                         f"{mean['luminance_ratio']:.3f} |")
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
 
 
 def _mean_curve(rows, quantity):
@@ -132,8 +170,10 @@ def plot_image_grid(path, rows, reference, image_path):
     matched, target = matched_rows(rows)
     exposure = reference_exposure(reference)
     panels = len(matched) + 1
-    figure, axes = pyplot.subplots(1, panels, figsize=(3.2 * panels, 3.6), squeeze=False)
-    axes = axes[0]
+    columns = min(5, panels)
+    lines = -(-panels // columns)
+    figure, axes = pyplot.subplots(lines, columns, figsize=(3.3 * columns, 3.5 * lines + 0.4), squeeze=False)
+    axes = axes.ravel()
     axes[0].imshow(srgb_tonemap(reference, exposure))
     axes[0].set_title("reference", fontsize=9)
     for axis, row in zip(axes[1:], matched):
@@ -144,8 +184,10 @@ def plot_image_grid(path, rows, reference, image_path):
     for axis in axes:
         axis.set_xticks([])
         axis.set_yticks([])
+    for axis in axes[panels:]:
+        axis.set_visible(False)
     figure.suptitle(f"matched time: about {target:.2f} s", fontsize=10)
-    figure.tight_layout()
+    figure.tight_layout(rect=(0, 0, 1, 0.96))
     save_figure(figure, path, dpi=110)
 
 
@@ -157,7 +199,7 @@ def write_table_8(path, rows, scene, config):
              f"image {'x'.join(map(str, config.output_resolution))}", "",
              "Mean over seeds; kernels warmed first; CoSaMP = the reconstruction phase; "
              f"relMSE epsilon = {compare.RELMSE_EPSILON}.", ""]
-    thesis = THESIS_TABLES.get(scene)
+    thesis = THESIS_TABLES.get(scene) if config.kind == "dof" else None  # Tables 8.1/8.2 are depth of field
     for method in dict.fromkeys(row["method"] for row in rows):
         lines += [f"## {method}", ""]
         header = "| SPP | Total | Sampling | CoSaMP | Integration | Other | SSIM | relMSE | luminance ratio |"
@@ -239,5 +281,47 @@ def plot_crop_grid(path, rows, reference, image_path):
                 axis.set_title(titles[column], fontsize=8)
         axes[line][0].set_ylabel(f"x {left}, y {top}", fontsize=8)
     figure.suptitle(f"detail crops where the methods differ most, matched time about {target:.2f} s", fontsize=9)
-    figure.tight_layout()
+    figure.tight_layout(rect=(0, 0, 1, 0.96))
     save_figure(figure, path, dpi=110)
+
+
+# Thesis Tables 6.2 (Cornell Box) and 6.3 (San Miguel): image size -> (spp, SFT importance sampling s, PT s).
+THESIS_GUIDING_TABLES = {
+    "cornell-box": ("6.2", "Cornell Box", {1000: (489, 238, 199), 2000: (197, 387, 304), 4000: (124, 930, 817)}),
+    "cornell-caustics": ("6.2", "Cornell Box", {1000: (489, 238, 199), 2000: (197, 387, 304),
+                                                 4000: (124, 930, 817)}),
+    "courtyard": ("6.3", "San Miguel", {1000: (489, 1439, 1203), 2000: (197, 2216, 1969), 4000: (124, 5316, 5172)}),
+}
+
+
+def write_table_6(path, rows, scene, config):
+    """Tables 6.2/6.3 layout for the guided methods: image size, spp, guided time, PT time at the same spp.
+
+    Also the relMSE of both and the guided relMSE over PT's at equal time.
+    """
+    guided = [row for row in rows if row["method"].startswith("guided-")]
+    if not guided:
+        return
+    width, height = config.output_resolution
+    lines = [f"# Guided rendering times (s), {scene}, image {width}x{height}, map {'x'.join(map(str, config.shape))}",
+             "", "Guided time includes the pilot pass, the map's reconstruction and the CDFs; mean over seeds.", "",
+             "| method | image size | spp | map spp | guided time | PT time (same spp) | guided relMSE | PT relMSE | "
+             "relMSE / PT at equal time |", "|---|---|---|---|---|---|---|---|---|"]
+    for method in dict.fromkeys(row["method"] for row in guided):
+        for spp in sorted({row["spp"] for row in guided if row["method"] == method}):
+            group = [row for row in guided if row["method"] == method and row["spp"] == spp]
+            seconds = float(np.mean([row["seconds_total"] for row in group]))
+            relmse = float(np.mean([row["relmse"] for row in group]))
+            pt_rows = [row for row in rows if row["method"] == "pt" and row["spp"] == spp]
+            pt_seconds = f"{np.mean([r['seconds_total'] for r in pt_rows]):.3f}" if pt_rows else "-"
+            pt_relmse = f"{np.mean([r['relmse'] for r in pt_rows]):.4g}" if pt_rows else "-"
+            equal = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
+            ratio = f"{relmse / float(np.mean(equal)):.2f}" if len(equal) == len(group) else "-"
+            lines.append(f"| {method} | {width}x{height} | {spp} | {config.map_spp or 16} | {seconds:.3f} | {pt_seconds} | "
+                         f"{relmse:.4g} | {pt_relmse} | {ratio} |")
+    thesis = THESIS_GUIDING_TABLES.get(scene)
+    if thesis:
+        lines += ["", f"Thesis Table {thesis[0]} ({thesis[1]}, SFT importance sampling, 100x100x4^8 map):", "",
+                  "| image size | spp | SFT importance sampling time | PT time |", "|---|---|---|---|"]
+        lines += [f"| {size}x{size} | {values[0]} | {values[1]} | {values[2]} |" for size, values in thesis[2].items()]
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())

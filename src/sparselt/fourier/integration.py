@@ -42,9 +42,12 @@ METHODS = ("sum", "time", "time-fft", "convolution")
 
 def _split_axes(dimensions, keep_axes):
     try:
-        keep = tuple(int(axis) for axis in keep_axes)
-    except (TypeError, ValueError):
+        axes = tuple(keep_axes)
+    except TypeError:
         raise ValueError(f"keep_axes must be a sequence of axis numbers, got {keep_axes!r}") from None
+    if any(isinstance(axis, bool) or not isinstance(axis, (int, np.integer)) for axis in axes):
+        raise ValueError(f"keep_axes must hold integer axis numbers, got {keep_axes!r}")
+    keep = tuple(int(axis) for axis in axes)
     if any(not -dimensions <= axis < dimensions for axis in keep):
         raise ValueError(f"keep_axes {keep} out of range for a {dimensions}-D signal (axes 0..{dimensions - 1})")
     keep = tuple(axis % dimensions for axis in keep)

@@ -44,11 +44,19 @@ RELATIVE_DEPTH_SIGMA = 0.1
 
 
 def noise_sigma(samples):
-    """Median over pixels of the standard error of the pixel mean (RGB Euclidean), from the samples."""
+    """Median over pixels of the standard error of the pixel mean (RGB Euclidean), from the samples.
+
+    Per-pixel sums and sums of squares accumulated in float64 without a
+    float64 copy of the samples.
+    """
     width, height = samples.resolution
-    values = samples.values.reshape(height, width, samples.spp, 3).astype(np.float64)
-    variance = values.var(axis=2, ddof=1).sum(axis=-1) if samples.spp > 1 else np.zeros((height, width))
-    error = np.sqrt(variance / samples.spp)
+    if samples.spp < 2:
+        return 1e-6
+    values = samples.values.reshape(height * width, samples.spp, 3)
+    total = values.sum(axis=1, dtype=np.float64)
+    squares = np.einsum("psc,psc->pc", values, values, dtype=np.float64)
+    variance = np.maximum(squares - total * total / samples.spp, 0.0) / (samples.spp - 1)
+    error = np.sqrt(variance.sum(axis=-1) / samples.spp)
     sigma = float(np.median(error))
     if sigma <= 0:
         sigma = float(error.mean())

@@ -60,9 +60,13 @@ class PixelSamples:
         return np.asarray(per_sample, dtype=np.float64).reshape(height, width, self.spp).mean(axis=2)
 
 
-def draw_pixel_samples(context, budget):
-    """Draw ``budget.spp`` samples per output pixel in launches of about 4M lanes."""
-    width, height = context.resolution
+def draw_pixel_samples(context, budget, *, resolution=None):
+    """Draw ``budget.spp`` samples per pixel in launches of about 4M lanes.
+
+    ``resolution`` (default the comparison's output resolution) is the pixel
+    grid: a pilot pass for an importance map draws per map cell instead.
+    """
+    width, height = resolution or context.resolution
     pixels = width * height
     per_launch = max(1, LANES_PER_LAUNCH // budget.spp)
     values = np.empty((pixels * budget.spp, 3), dtype=np.float32)
@@ -71,12 +75,12 @@ def draw_pixel_samples(context, budget):
     for first in range(0, pixels, per_launch):
         count = min(per_launch, pixels - first)
         launch_values, launch_cells, bad = context.scene.sample_pixels(
-            context.layout, context.grid_shape, budget.spp, budget.seed, first_pixel=first, pixel_count=count)
+            context.layout, context.grid_shape, budget.spp, budget.seed, first_pixel=first, pixel_count=count,
+            resolution=(width, height))
         values[first * budget.spp:(first + count) * budget.spp] = launch_values
         cells[first * budget.spp:(first + count) * budget.spp] = launch_cells
         nonfinite += bad
-    return PixelSamples(values=values, cells=cells, spp=budget.spp, resolution=tuple(context.resolution),
-                        nonfinite=nonfinite)
+    return PixelSamples(values=values, cells=cells, spp=budget.spp, resolution=(width, height), nonfinite=nonfinite)
 
 
 def cell_means(samples, size):

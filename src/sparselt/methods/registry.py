@@ -38,3 +38,4 @@ def _load_builtin():
     from . import samples_mean  # noqa: F401
     from . import cosamp_reconstruction  # noqa: F401
     from . import filtered  # noqa: F401
+    from . import guided  # noqa: F401

@@ -48,7 +48,22 @@ def _validate(operator, samples, sparsity):
         raise ValueError(f"sparsity K must be an integer, got {sparsity!r}")
     if not 0 < sparsity < operator.output_size:
         raise ValueError(f"sparsity K must satisfy 0 < K < number of samples ({operator.output_size}), got {sparsity}")
-    return samples.astype(operator.sample_dtype, copy=False)
+    samples = samples.astype(operator.sample_dtype, copy=False)
+    norm = float(np.linalg.norm(samples.astype(np.result_type(samples.dtype, np.float64))))
+    largest = (float(np.finfo(operator.sample_dtype).max) / max(1, samples.size)) ** 0.5  # keeps ||y||^2 finite
+    if not np.isfinite(norm) or float(np.abs(samples).max(initial=0.0)) > largest:
+        raise ValueError(f"y holds values up to {float(np.abs(samples).max()):.3g}, too large for "
+                         f"{np.dtype(operator.sample_dtype).name} arithmetic (at most {largest:.3g} here); "
+                         "divide y by a scale and multiply the estimate back")
+    return samples
+
+
+def _check_tolerance(tolerance):
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)):
+        raise TypeError(f"tolerance must be a number, got {tolerance!r}")
+    if not (np.isfinite(tolerance) and tolerance >= 0):
+        raise ValueError(f"tolerance must be finite and >= 0, got {tolerance!r}")
+    return float(tolerance)
 
 
 def _largest(energy, budget, operator, labels=None):
@@ -171,6 +186,7 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     incomplete and inaccurate samples", ACHA 26(3), 2009. Thesis 2.2.1.
     """
     samples = _validate(operator, y, sparsity)
+    tolerance = _check_tolerance(tolerance)
     clock = _Clock(("proxy", "select", "least_squares", "prune", "residual"))
     transforms_before = operator.transforms
     norm = float(np.linalg.norm(samples)) or 1.0
@@ -230,6 +246,7 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50):
     is below ``tolerance`` (``'converged'``).
     """
     samples = _validate(operator, y, sparsity)
+    tolerance = _check_tolerance(tolerance)
     clock = _Clock(("proxy", "select", "least_squares", "residual"))
     transforms_before = operator.transforms
     norm = float(np.linalg.norm(samples)) or 1.0

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import check_integer  # noqa: F401  (re-exported: callers import it from here)
-from ..provenance import environment_record, read_json, write_json
+from ..provenance import environment_record, format_bytes, read_json, write_json
 from ..signal import (
     DATA_FILE,
     FORMAT_VERSION,
@@ -191,15 +191,16 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         check_integer("chunk_cells", chunk_cells, 1)
     # Cheap checks first; the layout of a scene file needs its camera, hence the renderer (checked below).
     if spec.camera is not None:
-        layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens)
+        layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens,
+                             hide_emitters=spec.hide_emitters)
         _check_shape_matches(config, layout)
     nbytes = signal_bytes(config.shape)
     if path is None:
         available = _available_memory()
         if nbytes > available // 2:
             raise ValueError(
-                f"a signal of shape {tuple(config.shape)} takes {nbytes / 1e9:.1f} GB, more than half of the "
-                f"{available / 1e9:.1f} GB of available memory; give an output path to store it on disk"
+                f"a signal of shape {tuple(config.shape)} takes {format_bytes(nbytes)}, more than half of the "
+                f"{format_bytes(available)} of available memory; give an output path to store it on disk"
             )
     else:
         path = os.fspath(path)
@@ -207,10 +208,12 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         if resumable is None:
             free = shutil.disk_usage(os.path.dirname(os.path.abspath(path)) or ".").free
             if nbytes > free:
-                raise ValueError(f"the signal takes {nbytes / 1e9:.1f} GB but only {free / 1e9:.1f} GB of disk is free at {path!r}")
+                raise ValueError(f"the signal takes {format_bytes(nbytes)} but only {format_bytes(free)} of disk is free "
+                                 f"at {path!r}")
 
     scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
-    layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens)
+    layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens,
+                         hide_emitters=spec.hide_emitters)
     _check_shape_matches(config, layout)
 
     cells = math.prod(config.shape)
@@ -232,12 +235,24 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
             first = index * chunk
             count = min(chunk, cells - first)
             means, nonfinite = scene.sample_cells(layout, config.shape, first, count, config.spp, config.seed)
+            overflow = ~np.all(np.isfinite(means), axis=1)  # finite samples whose float32 sum overflowed
+            if overflow.any():
+                cell = first + int(np.flatnonzero(overflow)[0])
+                if config.nonfinite == "error":
+                    raise NonFiniteSampleError(
+                        f"{int(overflow.sum())} cell means overflow float32 in cells {first}..{first + count - 1} "
+                        f"(first at cell {cell}): the scene's radiance is too large to store (float32 holds up to "
+                        f"3.4e38); scale the emitters down, or rerun with --nonfinite zero to store 0 in those cells. "
+                        f"{len(finished)} finished chunks are kept."
+                    )
+                means[overflow] = 0.0
+                nonfinite = nonfinite + overflow * config.spp
             bad = int(nonfinite.sum())
             if bad and config.nonfinite == "error":
                 cell = first + int(np.flatnonzero(nonfinite)[0])
                 raise NonFiniteSampleError(
                     f"the renderer returned {bad} NaN or infinite samples in cells {first}..{first + count - 1} "
-                    f"(first at cell {cell}, grid index {np.unravel_index(cell, config.shape)}); "
+                    f"(first at cell {cell}, grid index {tuple(int(i) for i in np.unravel_index(cell, config.shape))}); "
                     f"{len(finished)} finished chunks are kept. Rerun with --nonfinite zero to count them and "
                     "use 0 in their place."
                 )
@@ -296,6 +311,7 @@ def _meta(config, spec, scene, layout, *, status):
         "config": config.record(),
         "scene": spec.name,
         "scene_description": spec.description,
+        "hide_emitters": spec.hide_emitters,
         "camera": {
             "fov": camera.fov,
             "fov_axis": camera.fov_axis,
@@ -324,7 +340,10 @@ def _prepare_folder(path, config, *, overwrite):
     if status == "incomplete" and os.path.isfile(os.path.join(path, PROGRESS_FILE)):
         meta = read_json(os.path.join(path, META_FILE))
         has_data = any(os.path.isfile(os.path.join(path, name)) for name in (PARTIAL_DATA_FILE, DATA_FILE))
-        if meta.get("config") == config.record() and has_data:
+        if _same_signal(meta.get("config") or {}, config.record()) and has_data:
+            if meta["config"].get("nonfinite") != config.nonfinite:  # the policy may change on resume
+                meta["config"]["nonfinite"] = config.nonfinite
+                write_json(os.path.join(path, META_FILE), meta)
             return read_json(os.path.join(path, PROGRESS_FILE))
         if not overwrite:
             raise ValueError(
@@ -343,6 +362,13 @@ def _prepare_folder(path, config, *, overwrite):
         if os.path.exists(target):
             os.remove(target)
     return None
+
+
+def _same_signal(recorded, requested):
+    """Whether a recorded configuration is the requested one, the NaN policy aside (it may change on resume)."""
+    ignore = ("nonfinite",)
+    return ({k: v for k, v in recorded.items() if k not in ignore}
+            == {k: v for k, v in requested.items() if k not in ignore})
 
 
 def _open_folder(path, config, spec, scene, layout, chunk_cells, resumable):

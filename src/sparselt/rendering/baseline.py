@@ -18,6 +18,27 @@ from ..checks import check_integer
 from .scenes import get_scene
 
 
+MAXIMUM_WAVEFRONT = 2**32 - 1
+
+
+def check_wavefront(resolution, spp):
+    """Mitsuba renders pixels x spp samples in one wavefront, counted in 32 bits: refuse more, with the limit."""
+    samples = int(resolution[0]) * int(resolution[1]) * int(spp)
+    if samples > MAXIMUM_WAVEFRONT:
+        largest = MAXIMUM_WAVEFRONT // (int(resolution[0]) * int(resolution[1]))
+        raise ValueError(f"{resolution[0]}x{resolution[1]} pixels at {spp} spp are {samples:.3g} samples in one pass; "
+                         f"Mitsuba counts them in 32 bits: at most {largest} spp at this resolution "
+                         "(render several passes with different seeds and average them)")
+
+
+def check_finite_image(image, name):
+    """Refuse a render with NaN or infinite pixels instead of writing it."""
+    bad = int(np.count_nonzero(~np.isfinite(image)))
+    if bad:
+        raise ValueError(f"the render of {name!r} has {bad} NaN or infinite pixel values; nothing was written. "
+                         "The scene (an emitter of huge radiance, a degenerate mesh) produces them")
+
+
 def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, aperture=None,
                      focus_distance=None, variant="llvm_ad_rgb", scene_spec=None):
     """Render ``scene`` and write ``image.exr``, ``image.png`` and ``render.json`` into ``out``.
@@ -55,8 +76,10 @@ def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, a
     resolution = tuple(resolution or spec.default_resolution)
     for size in resolution:
         check_integer("resolution", size, 1)
+    check_wavefront(resolution, spp)
     loaded = mitsuba_backend.MitsubaScene(spec, resolution, variant=variant)
     image, seconds = loaded.render_path(spp, max_depth, seed)
+    check_finite_image(image, spec.name)
     os.makedirs(out, exist_ok=True)
     mitsuba_backend.write_exr(os.path.join(out, "image.exr"), image)
     write_png(os.path.join(out, "image.png"), image)
@@ -181,6 +204,7 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     try:
         for index, pass_spp in enumerate(passes):
             pass_seed = seed * 65536 + index
+            check_wavefront((loaded.width, loaded.height), pass_spp)
             image, elapsed = loaded.render_path(pass_spp, depth, pass_seed)
             total += pass_spp * image.astype(np.float64)
             seconds += elapsed

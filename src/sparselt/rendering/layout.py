@@ -132,7 +132,7 @@ def _minimum_depth(kind):
     return {"path": 1, "dof": 1, "path-indirect": 2, "indirect": 3}[kind]
 
 
-def path_layout(kind, max_depth=3, *, thin_lens=False):
+def path_layout(kind, max_depth=3, *, thin_lens=False, hide_emitters=False):
     """Build the :class:`PathLayout` of a signal kind.
 
     Parameters
@@ -143,6 +143,9 @@ def path_layout(kind, max_depth=3, *, thin_lens=False):
         Longest path in Mitsuba's convention (default 3, as the thesis).
     thin_lens : bool, optional
         Whether the camera is a thin lens. ``dof`` requires it.
+    hide_emitters : bool, optional
+        Do not count emitters seen directly by the camera (Mitsuba's
+        ``hide_emitters`` of a scene file's integrator).
 
     Returns
     -------
@@ -169,7 +172,7 @@ def path_layout(kind, max_depth=3, *, thin_lens=False):
     full = VertexPlan(next_event=True, count_emission_hit=True)
     if kind in ("path", "dof"):
         vertices = [full] * (max_depth - 1)
-        count_camera_emission = True
+        count_camera_emission = not hide_emitters
     elif kind == "indirect":
         vertices = [VertexPlan(False, False)] + [full] * (max_depth - 2)
         count_camera_emission = False

@@ -195,7 +195,14 @@ def camera_from_sensor(sensor):
 
     fov = read("x_fov", None)
     if fov is None:
-        raise ValueError(f"the scene's sensor ({sensor.class_().name()}) is not a perspective or thin-lens camera")
+        kind = type(sensor).__name__
+        try:
+            kind = sensor.variant_name() if hasattr(sensor, "variant_name") else str(sensor).split("[", 1)[0].strip()
+        except Exception:  # noqa: BLE001  (only for the message)
+            pass
+        raise ValueError(f"the scene's sensor ({kind}) is not a perspective or thin-lens camera; sparselt samples "
+                         "the image plane and lens of those only: change the XML's <sensor type=...> to "
+                         "'perspective' or 'thinlens'")
     aperture = read("aperture_radius", None)
     focus = read("focus_distance", 1000.0)
     near = read("near_clip", 0.001)
@@ -357,7 +364,7 @@ class MitsubaScene:
         means = np.stack([np.asarray(channel, dtype=np.float32) for channel in sums], axis=1)
         return means, np.asarray(bad, dtype=np.int64)
 
-    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None):
+    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None):
         """``spp`` path samples per film pixel, each at a uniformly random point of the pixel's PSS box.
 
         The image-plane dimensions are jittered inside the film pixel; every
@@ -381,6 +388,9 @@ class MitsubaScene:
         first_pixel, pixel_count : int, optional
             Film pixels ``first_pixel ..`` in row-major order (row ``y``);
             default every pixel.
+        resolution : tuple of int, optional
+            ``(width, height)`` of the pixel grid the samples are drawn per
+            (default the film's): a pilot pass draws per cell of a coarser map.
 
         Returns
         -------
@@ -392,7 +402,8 @@ class MitsubaScene:
         nonfinite : int
             Number of samples that were NaN or infinite.
         """
-        total = self.width * self.height
+        film_width, film_height = (self.width, self.height) if resolution is None else (int(v) for v in resolution)
+        total = film_width * film_height
         pixel_count = total - int(first_pixel) if pixel_count is None else int(pixel_count)
         lanes = pixel_count * int(spp)
         samples_per_pixel = dr.opaque(mi.UInt32, int(spp))
@@ -400,7 +411,7 @@ class MitsubaScene:
         pixel = dr.opaque(mi.UInt32, int(first_pixel)) + index // samples_per_pixel
         sample_index = index % samples_per_pixel
         seed_value = dr.opaque(mi.UInt32, int(seed))
-        width = dr.opaque(mi.UInt32, self.width)
+        width = dr.opaque(mi.UInt32, film_width)
         pixel_x, pixel_y = pixel % width, pixel // width
 
         generator = mi.PCG32()
@@ -412,9 +423,9 @@ class MitsubaScene:
         for name in layout.dimensions:
             uniform = generator.next_float32()
             if name == "x":
-                uniform = dr.minimum((mi.Float(pixel_x) + uniform) * dr.opaque(mi.Float, 1.0 / self.width), ONE_MINUS_EPSILON)
+                uniform = dr.minimum((mi.Float(pixel_x) + uniform) * dr.opaque(mi.Float, 1.0 / film_width), ONE_MINUS_EPSILON)
             elif name == "y":
-                uniform = dr.minimum((mi.Float(pixel_y) + uniform) * dr.opaque(mi.Float, 1.0 / self.height), ONE_MINUS_EPSILON)
+                uniform = dr.minimum((mi.Float(pixel_y) + uniform) * dr.opaque(mi.Float, 1.0 / film_height), ONE_MINUS_EPSILON)
             if name in axis_of:
                 position = axis_of[name]
                 resolution = dr.opaque(mi.Float, float(grid_shape[position]))
@@ -429,6 +440,91 @@ class MitsubaScene:
         values = np.stack([np.asarray(channel, dtype=np.float32) for channel in (value.x, value.y, value.z)], axis=1)
         return values, np.asarray(cell, dtype=np.int64), lanes - int(np.count_nonzero(np.asarray(finite)))
 
+    def render_guided(self, layout, map_shape, tables, densities, spp, seed, *, mode):
+        """Render the film with primary samples drawn from a piecewise-constant importance map (thesis 6.2.1, 8.3).
+
+        The map's axes are ``layout.axes`` (the signal kind's axes) with
+        resolution ``map_shape``; every other PSS dimension stays uniform. The
+        guided vector is warped inside the kernel, one axis at a time, by a
+        binary search in the conditional CDF of that axis given the cells
+        already chosen (:meth:`ImportanceMap.level_tables`); the remainder of
+        the uniform is the jitter inside the cell. Each sample contributes
+        ``f(u) / p(u)``.
+
+        Parameters
+        ----------
+        layout : PathLayout
+        map_shape : tuple of int
+            Map resolution per axis; its image axes divide the film resolution.
+        tables : list of ndarray
+            Conditional CDFs per axis (level ``k`` of shape ``map_shape[:k + 1]``).
+        densities : ndarray, shape (prod(map_shape),)
+            Density on the unit hypercube of each cell: of all axes
+            (``mode='global'``) or of the non-image axes given the image cell
+            (``mode='per-pixel'``).
+        spp : int
+            Samples per film pixel (``'global'``: on average).
+        seed : int
+        mode : {'global', 'per-pixel'}
+            ``'global'``: every sample picks a cell over all axes, the image
+            plane included, and is splatted into the film pixel it lands in.
+            ``'per-pixel'``: each pixel gets ``spp`` samples, jittered on the
+            image plane, and the other axes follow the map's conditional at the
+            pixel's image cell.
+
+        Returns
+        -------
+        image : ndarray, shape (height, width, 3), float32
+        nonfinite : int
+            Samples that were NaN or infinite (counted as 0).
+        """
+        pixels = self.width * self.height
+        lanes = pixels * int(spp)
+        index = dr.arange(mi.UInt32, lanes)
+        samples_per_pixel = dr.opaque(mi.UInt32, int(spp))
+        pixel = index // samples_per_pixel
+        sample_index = index % samples_per_pixel
+        seed_value = dr.opaque(mi.UInt32, int(seed))
+        generator = mi.PCG32()
+        generator.seed(mi.sample_tea_64(pixel, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value) + 0x9E37)
+        width = dr.opaque(mi.UInt32, self.width)
+        axis_of = {name: position for position, name in enumerate(layout.axes)}
+        first_axis = 0 if mode == "global" else 2
+        uniforms = {name: generator.next_float32() for name in layout.dimensions}
+        if mode == "per-pixel":
+            uniforms["x"] = (mi.Float(pixel % width) + uniforms["x"]) * dr.opaque(mi.Float, 1.0 / self.width)
+            uniforms["y"] = (mi.Float(pixel // width) + uniforms["y"]) * dr.opaque(mi.Float, 1.0 / self.height)
+            uniforms["x"] = dr.minimum(uniforms["x"], ONE_MINUS_EPSILON)
+            uniforms["y"] = dr.minimum(uniforms["y"], ONE_MINUS_EPSILON)
+            cell_x = mi.UInt32(uniforms["x"] * dr.opaque(mi.Float, float(map_shape[0])))
+            cell_y = mi.UInt32(uniforms["y"] * dr.opaque(mi.Float, float(map_shape[1])))
+            prefix = dr.minimum(cell_x, map_shape[0] - 1) * map_shape[1] + dr.minimum(cell_y, map_shape[1] - 1)
+        else:
+            prefix = mi.UInt32(0)
+        prefix = _warp_axes(map_shape, tables, uniforms, layout.axes, prefix, first_axis)
+        density = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(densities, dtype=np.float32)), prefix)
+
+        value = self._path_contribution(layout, uniforms) / density
+        finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z) & (density > 0)
+        value = dr.select(finite, value, 0.0)
+        scale = 1.0 / int(spp)
+        if mode == "per-pixel":
+            dr.eval(value, finite)
+            sums = [dr.block_sum(channel, int(spp)) * scale for channel in (value.x, value.y, value.z)]
+        else:
+            target_x = dr.minimum(mi.UInt32(uniforms["x"] * self.width), self.width - 1)
+            target_y = dr.minimum(mi.UInt32(uniforms["y"] * self.height), self.height - 1)
+            target = target_y * self.width + target_x
+            sums = []
+            for channel in (value.x, value.y, value.z):
+                accumulator = dr.zeros(mi.Float, pixels)
+                dr.scatter_reduce(dr.ReduceOp.Add, accumulator, channel * scale, target)
+                sums.append(accumulator)
+        dr.eval(sums, finite)
+        image = np.stack([np.asarray(channel, dtype=np.float32) for channel in sums], axis=1)
+        nonfinite = lanes - int(np.count_nonzero(np.asarray(finite)))
+        return image.reshape(self.height, self.width, 3), nonfinite
+
     # -- baseline -------------------------------------------------------------
 
     def render_path(self, spp, max_depth, seed=0):
@@ -440,7 +536,8 @@ class MitsubaScene:
         seconds : float
             Wall time of the render, synchronised with ``dr.sync_thread``.
         """
-        integrator = mi.load_dict({"type": "path", "max_depth": int(max_depth), "rr_depth": 1 << 30})
+        integrator = mi.load_dict({"type": "path", "max_depth": int(max_depth), "rr_depth": 1 << 30,
+                                   "hide_emitters": bool(self.spec.hide_emitters)})
         dr.sync_thread()
         start = time.perf_counter()
         image = mi.render(self.scene, sensor=self.sensor, integrator=integrator, spp=int(spp), seed=int(seed))
@@ -476,6 +573,64 @@ class MitsubaScene:
             raise RuntimeError(f"Mitsuba's aov integrator returned {channels} channels, expected albedo, normal and depth (7)")
         buffers = {"albedo": array[..., -7:-4], "normal": array[..., -4:-1], "depth": array[..., -1]}
         return buffers, seconds
+
+
+def _warp_axes(map_shape, tables, uniforms, names, prefix, first_axis):
+    """Warp ``uniforms[names[k]]`` for ``k >= first_axis`` through the map's conditional CDFs, in place.
+
+    One binary search per axis in the CDF row of the cells chosen so far; the
+    remainder of the uniform inside the chosen interval is the jitter inside
+    the cell. Returns the flat cell index (C order over ``map_shape``).
+    """
+    for axis in range(first_axis, len(map_shape)):
+        name = names[axis]
+        length = int(map_shape[axis])
+        table = mi.Float(np.ascontiguousarray(tables[axis], dtype=np.float32).reshape(-1))
+        base = prefix * length
+        value = uniforms[name]
+        found = dr.binary_search(0, length - 1, lambda j: dr.gather(mi.Float, table, base + j) <= value)
+        found = dr.minimum(found, length - 1)
+        high = dr.gather(mi.Float, table, base + found)
+        low = dr.select(found > 0, dr.gather(mi.Float, table, base + dr.maximum(found, 1) - 1), 0.0)
+        width = high - low
+        remainder = dr.clip(dr.select(width > 0, (value - low) / width, 0.5), 0.0, ONE_MINUS_EPSILON)
+        uniforms[name] = dr.minimum((mi.Float(found) + remainder) * (1.0 / length), ONE_MINUS_EPSILON)
+        prefix = base + found
+    return prefix
+
+
+def warp_points(map_shape, tables, uniforms, *, image_cells=None):
+    """Run the guided renderer's in-kernel warp on explicit uniforms (for tests and diagnostics).
+
+    Parameters
+    ----------
+    map_shape : tuple of int
+    tables : list of ndarray
+        :meth:`ImportanceMap.level_tables`.
+    uniforms : ndarray, shape (n, D - first axis)
+        Uniform numbers for the warped axes.
+    image_cells : ndarray of int, optional
+        Flat image-plane cells (the first two axes) to condition on; without
+        them every axis is warped.
+
+    Returns
+    -------
+    points : ndarray, shape like ``uniforms``
+    cells : ndarray of int64, shape (n,)
+        Flat cell of each point over the whole map.
+    """
+    initialize()
+    first_axis = 0 if image_cells is None else 2
+    names = [f"axis{k}" for k in range(len(map_shape))]
+    values = {names[first_axis + k]: mi.Float(np.ascontiguousarray(uniforms[:, k], dtype=np.float32))
+              for k in range(uniforms.shape[1])}
+    prefix = mi.UInt32(0) if image_cells is None else mi.UInt32(np.asarray(image_cells, dtype=np.uint32))
+    if image_cells is None:
+        prefix = dr.zeros(mi.UInt32, uniforms.shape[0])
+    cells = _warp_axes(map_shape, tables, values, names, prefix, first_axis)
+    dr.eval(cells, *values.values())
+    points = np.stack([np.asarray(values[names[first_axis + k]], dtype=np.float64) for k in range(uniforms.shape[1])], 1)
+    return points, np.asarray(cells, dtype=np.int64)
 
 
 def _power_heuristic(pdf_a, pdf_b):

@@ -132,6 +132,7 @@ class SceneSpec:
     camera: Camera | None = None
     default_resolution: tuple = (256, 256)
     lens_overrides: dict = field(default_factory=dict)
+    hide_emitters: bool = False
 
     def with_lens(self, aperture_radius=None, focus_distance=None):
         """Record a thin-lens override; applied to the camera once it is known."""
@@ -269,6 +270,40 @@ def scene_names():
     return sorted(SCENES)
 
 
+def read_xml_settings(path):
+    """What sparselt takes from a Mitsuba XML file besides the scene: film size and ``hide_emitters``.
+
+    Returns ``{'resolution': (width, height) or None, 'hide_emitters': bool}``,
+    resolving ``$name`` references to the file's ``<default>`` values. Plain
+    XML parsing: the renderer is not needed.
+    """
+    import xml.etree.ElementTree as ElementTree
+
+    try:
+        root = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as error:
+        raise ValueError(f"scene file {path!r} is not valid XML: {error}") from None
+    defaults = {node.get("name"): node.get("value") for node in root.iter("default")}
+
+    def value(node):
+        text = node.get("value", "")
+        return defaults.get(text[1:], text) if text.startswith("$") else text
+
+    settings = {"resolution": None, "hide_emitters": False}
+    for film in root.iter("film"):
+        sizes = {node.get("name"): value(node) for node in film.findall("integer")}
+        try:
+            settings["resolution"] = (int(sizes["width"]), int(sizes["height"]))
+        except (KeyError, ValueError):
+            pass
+        break
+    for integrator in root.iter("integrator"):
+        for node in integrator.iter("boolean"):
+            if node.get("name") == "hide_emitters":
+                settings["hide_emitters"] = value(node).strip().lower() == "true"
+    return settings
+
+
 def _load_procedural():
     from . import procedural  # noqa: F401  (registers its scenes)
 
@@ -288,7 +323,10 @@ def get_scene(name_or_path):
         if not os.path.isfile(name_or_path):
             raise ValueError(f"scene file {name_or_path!r} does not exist")
         path = os.path.abspath(name_or_path)
-        return SceneSpec(name=os.path.basename(path), description=f"Mitsuba scene file {path}", filename=path)
+        settings = read_xml_settings(path)
+        return SceneSpec(name=os.path.basename(path), description=f"Mitsuba scene file {path}", filename=path,
+                         default_resolution=settings["resolution"] or (256, 256),
+                         hide_emitters=settings["hide_emitters"])
     raise ValueError(
         f"unknown scene {name_or_path!r}; built-in scenes are: {', '.join(sorted(SCENES))}; "
         "or give the path of a Mitsuba 3 XML scene file"

@@ -1,0 +1,227 @@
+r"""Guided rendering from importance maps: ``guided-pilot``, ``guided-cosamp``, ``guided-bilateral`` (thesis 6.2, 8.3, 8.4).
+
+Each method spends part of its budget on a pilot pass (``map_spp`` samples per
+cell of the map's image plane, the signal grid of the comparison), turns the
+pilot into a map over the grid, and renders the output with ``spp`` guided
+samples per pixel (:meth:`MitsubaScene.render_guided`). The map's cost (pilot
+samples, CoSaMP, the 4-D filter, building the CDFs) is counted in the
+method's time and its samples in ``path_samples``.
+
+Map sources:
+
+``guided-pilot``
+    The raw pilot cell means (luminance): the ablation any reconstruction
+    must beat.
+``guided-cosamp``
+    The CoSaMP reconstruction of the pilot (thesis 8.3): cell means, gamma,
+    CoSaMP, inverse gamma (the thesis procedure of 8.1.1), negative values
+    clamped to 0.
+``guided-bilateral``
+    The pilot cell means filtered in 4-D by a normalised cross-bilateral
+    filter whose range guide is the CoSaMP reconstruction (thesis 8.4):
+    window 5x5x3x3, spatial sigma 1 cell, range sigma 2x the median absolute
+    reconstruction value; unsampled cells have weight 0.
+
+Every map is mixed with the uniform density, so the guided estimator's
+variance is at most ``1 / weight`` times path tracing's; the one-sample
+balance heuristic between map and uniform is the same estimator (see
+:mod:`sparselt.guiding.importance_map`). Mode ``per-pixel`` (default) keeps
+every pixel's spp and guides the non-image axes by the map's conditional,
+with a mixture weight chosen per image cell from ``(0.1, 0.25, 0.5, 1)`` by
+the cross-validated second moment of the guided estimator on the pilot's own
+samples (1 = plain path tracing where the map does not help); ``global``
+draws cells over the image plane too, with the fixed ``defensive`` weight.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..filters import cross_bilateral
+from ..guiding import ImportanceMap
+from ..images import luminance
+from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
+from .cosamp_reconstruction import reconstruct_luminance, reconstruction_options
+from .pixel_samples import cell_means, draw_pixel_samples
+from .registry import register
+
+DEFAULT_MAP_SPP = 16
+DEFAULT_DEFENSIVE = 0.1
+# Per-pixel mode: candidate defensive weights per image cell, chosen by cross-validation on the pilot.
+DEFENSIVE_CANDIDATES = (0.1, 0.25, 0.5, 1.0)
+MODES = ("per-pixel", "global")
+BILATERAL_RADIUS = (2, 2, 1, 1)
+
+
+def guiding_options(context):
+    """``(map_spp, defensive, mode)`` of a comparison, with the defaults."""
+    map_spp = int(context.options.get("map_spp") or DEFAULT_MAP_SPP)
+    defensive = context.options.get("defensive")
+    defensive = DEFAULT_DEFENSIVE if defensive is None else float(defensive)
+    mode = context.options.get("guiding_mode") or "per-pixel"
+    if mode not in MODES:
+        raise ValueError(f"guiding mode must be one of {', '.join(MODES)}, got {mode!r}")
+    return map_spp, defensive, mode
+
+
+def render_with_map(context, importance, budget, mode):
+    """The guided render of ``context`` with ``importance`` (an ImportanceMap over the grid)."""
+    if mode == "global":
+        densities = importance.pdf.reshape(-1) * importance.size
+    else:
+        image_cells = math.prod(importance.shape[:2])
+        flat = importance.pdf.reshape(image_cells, -1)
+        densities = (flat / flat.sum(axis=1, keepdims=True)).reshape(-1) * flat.shape[1]
+    return context.scene.render_guided(context.layout, importance.shape, importance.level_tables(), densities,
+                                       budget.spp, budget.seed, mode=mode)
+
+
+class _GuidedMethod(Method):
+    kinds = ("dof", "indirect", "path")
+    needs_resolution_multiple = True
+
+    def warm_up(self, context):
+        draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), resolution=tuple(context.grid_shape[:2]))
+        uniform = ImportanceMap(np.ones(context.grid_shape), defensive=1.0)
+        _, _, mode = guiding_options(context)
+        render_with_map(context, uniform, Budget(spp=1, seed=WARM_UP_SEED), mode)
+
+    def run(self, context, budget):
+        map_spp, defensive, mode = guiding_options(context)
+        timer = PhaseTimer()
+        with timer("sampling"):
+            pilot = draw_pixel_samples(context, Budget(spp=map_spp, seed=budget.seed ^ 0x5A5A5A5A),
+                                       resolution=tuple(context.grid_shape[:2]))
+        with timer("other"):
+            cells, means, _ = cell_means(pilot, math.prod(context.grid_shape))
+        values, details = self.map_values(context, cells, means, timer)
+        if mode == "per-pixel" and map_spp >= 2:
+            weights = self.select_defensive(context, pilot, timer)
+            with timer("other"):
+                importance = ImportanceMap(mixed_conditionals(values, weights), defensive=0.0)
+            details.update(defensive_weights="per image cell, cross-validated", mean_defensive=float(weights.mean()),
+                           uniform_cells=float(np.mean(weights == 1.0)))
+        else:
+            with timer("other"):
+                importance = ImportanceMap(values, defensive=defensive, clamp_negative=True)
+            details.update(defensive=defensive)
+        with timer("sampling"):
+            image, nonfinite = render_with_map(context, importance, budget, mode)
+        width, height = context.resolution
+        details.update(map_spp=map_spp, mode=mode, nonfinite_samples=nonfinite + pilot.nonfinite,
+                       pilot_samples=int(pilot.values.shape[0]))
+        return MethodResult(image=image, seconds=timer.seconds,
+                            path_samples=int(pilot.values.shape[0]) + width * height * budget.spp, details=details)
+
+    def select_defensive(self, context, pilot, timer):
+        """The defensive weight of each image cell, chosen by cross-validated second moment (no reference).
+
+        The pilot's samples split in two folds; the map built from one fold is
+        scored on the other's samples (drawn uniformly, so
+        ``mean f^2 / q`` estimates the second moment of the guided estimator
+        ``f / q`` without bias), for each candidate weight in
+        :data:`DEFENSIVE_CANDIDATES`. Each cell keeps the weight of smallest
+        summed second moment; cells whose pilot saw nothing stay uniform.
+        """
+        image_cells = math.prod(context.grid_shape[:2])
+        rest = math.prod(context.grid_shape[2:])
+        moments = np.zeros((image_cells, len(DEFENSIVE_CANDIDATES)))
+        for fold in (0, 1):
+            with timer("other"):
+                train, test = pilot.fold(fold), pilot.fold(1 - fold)
+                cells, means, _ = cell_means(train, math.prod(context.grid_shape))
+            values, _ = self.map_values(context, cells, means, timer)
+            with timer("other"):
+                conditional = _conditionals(values, image_cells, rest)
+                level = luminance(test.values).astype(np.float64)
+                squared = level * level
+                image_cell, offset = test.cells // rest, test.cells % rest
+                guided = rest * conditional[image_cell, offset]
+                for index, weight in enumerate(DEFENSIVE_CANDIDATES):
+                    density = weight + (1.0 - weight) * guided
+                    moments[:, index] += np.bincount(image_cell, weights=squared / density, minlength=image_cells)
+        choice = np.asarray(DEFENSIVE_CANDIDATES)[np.argmin(moments, axis=1)]
+        choice[moments.max(axis=1) == 0] = 1.0
+        return choice
+
+    def map_values(self, context, cells, means, timer):  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+def _conditionals(values, image_cells, rest):
+    """Per image cell, the map's distribution over the other axes (rows sum to 1; empty rows uniform)."""
+    flat = np.maximum(np.asarray(values, dtype=np.float64).reshape(image_cells, rest), 0.0)
+    totals = flat.sum(axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(totals > 0, flat / np.where(totals > 0, totals, 1.0), 1.0 / rest)
+
+
+def mixed_conditionals(values, weights):
+    """Map values whose conditional at image cell ``p`` is ``weights[p] * uniform + (1 - weights[p]) * map``.
+
+    Each image cell gets the same total, so the result serves the per-pixel
+    mode (which uses only the conditionals).
+    """
+    values = np.asarray(values)
+    image_cells = weights.size
+    rest = values.size // image_cells
+    conditional = _conditionals(values, image_cells, rest)
+    mixed = weights[:, None] / rest + (1.0 - weights[:, None]) * conditional
+    return mixed.reshape(values.shape)
+
+
+def _scatter(cells, means, grid_shape):
+    values = np.zeros(math.prod(grid_shape))
+    values[cells] = means
+    return values.reshape(grid_shape)
+
+
+@register
+class GuidedPilot(_GuidedMethod):
+    name = "guided-pilot"
+    description = "guided by the raw pilot cell means (the ablation), defensive mixture"
+
+    def map_values(self, context, cells, means, timer):
+        with timer("other"):
+            return _scatter(cells, means, context.grid_shape), {"map": "pilot"}
+
+
+@register
+class GuidedCosamp(_GuidedMethod):
+    name = "guided-cosamp"
+    kinds = ("dof", "indirect", "path")
+    description = "guided by the CoSaMP reconstruction of the pilot (thesis 8.3), defensive mixture"
+
+    def map_values(self, context, cells, means, timer):
+        gamma, sparsity = reconstruction_options(context)
+        with timer("reconstruction"):
+            reconstruction, result = reconstruct_luminance(cells, means, context.grid_shape, gamma=gamma,
+                                                           sparsity=sparsity)
+        return reconstruction, {"map": "cosamp", "gamma": gamma, "sparsity": sparsity,
+                                "cosamp_iterations": result.iterations}
+
+
+@register
+class GuidedBilateral(_GuidedMethod):
+    name = "guided-bilateral"
+    kinds = ("dof", "indirect")
+    description = ("guided by the pilot filtered in 4-D with the CoSaMP reconstruction as range guide (thesis 8.4), "
+                   "defensive mixture")
+
+    def map_values(self, context, cells, means, timer):
+        gamma, sparsity = reconstruction_options(context)
+        with timer("reconstruction"):
+            reconstruction, result = reconstruct_luminance(cells, means, context.grid_shape, gamma=gamma,
+                                                           sparsity=sparsity)
+            sampled = np.zeros(math.prod(context.grid_shape))
+            sampled[cells] = 1.0
+            stacked = np.stack([_scatter(cells, means, context.grid_shape), sampled.reshape(context.grid_shape)], -1)
+            scale = float(np.median(np.abs(reconstruction[reconstruction > 0]))) if np.any(reconstruction > 0) else 1.0
+            sigma_range = 2.0 * scale
+            filtered = cross_bilateral(stacked, [reconstruction], BILATERAL_RADIUS, 1.0, sigma_range, channel_axis=-1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                values = np.where(filtered[..., 1] > 0, filtered[..., 0] / filtered[..., 1], 0.0)
+        return values, {"map": "bilateral", "gamma": gamma, "sparsity": sparsity, "sigma_range": sigma_range,
+                        "radius": list(BILATERAL_RADIUS), "cosamp_iterations": result.iterations}
