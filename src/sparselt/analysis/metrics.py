@@ -40,6 +40,7 @@ import numbers
 import numpy as np
 from scipy import ndimage
 
+from ..checks import check_positive_finite
 from ..images import luminance, srgb_tonemap
 
 __all__ = [
@@ -95,15 +96,10 @@ def _image_pair(image, reference):
 
 
 def _positive_finite(value, name, *, hint):
-    """``value`` as a positive finite float; ValueError (or TypeError) otherwise."""
+    """``value`` as a positive finite float; ValueError (or TypeError) otherwise; None means it was not given."""
     if value is None:
         raise ValueError(f"{name} is required: pass {name}=<{hint}> as a keyword argument")
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{name} must be a real number ({hint}); got {value!r} of type {type(value).__name__}")
-    value = float(value)
-    if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{name} must be a finite number greater than 0 ({hint}); got {value!r}")
-    return value
+    return check_positive_finite(value, name, hint=hint)
 
 
 # --------------------------------------------------------------------------- SSIM

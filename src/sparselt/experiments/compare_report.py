@@ -117,11 +117,7 @@ def results_table(rows):
 
 def plot_quality_vs_time(path, rows, scene, epsilon):
     """SSIM and relMSE against total seconds, one line per method, log time axis (Figures 8.1/8.3)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as pyplot
-
+    pyplot = _pyplot()
     figure, (left, right) = pyplot.subplots(1, 2, figsize=(11, 4.2))
     for method in dict.fromkeys(row["method"] for row in rows):
         method_rows = [row for row in rows if row["method"] == method]
@@ -156,17 +152,22 @@ def matched_rows(rows):
     return matched, target
 
 
-def plot_image_grid(path, rows, reference, image_path):
-    """The reference and every method at matched time, with SSIM, relMSE and luminance ratio."""
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as pyplot
 
+    return pyplot
+
+
+def plot_image_grid(path, rows, reference, image_path):
+    """The reference and every method at matched time, with SSIM, relMSE and luminance ratio."""
     from ..analysis.metrics import reference_exposure
 
     if not rows:
         return
+    pyplot = _pyplot()
     matched, target = matched_rows(rows)
     exposure = reference_exposure(reference)
     panels = len(matched) + 1
@@ -251,15 +252,11 @@ def disagreement_crops(images, size, count=3):
 
 def plot_crop_grid(path, rows, reference, image_path):
     """Detail crops (rows) of the reference and every method at matched time (columns), where they differ most."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as pyplot
-
     from ..analysis.metrics import reference_exposure
 
     if not rows:
         return
+    pyplot = _pyplot()
     matched, target = matched_rows(rows)
     exposure = reference_exposure(reference)
     displays = [srgb_tonemap(np.load(image_path(row)), exposure) for row in matched]

@@ -30,7 +30,7 @@ import numpy as np
 from ..filters import bilateral, cross_bilateral, gaussian, oidn_denoise
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .cosamp_reconstruction import image_from_samples, reconstruction_options
-from .pixel_samples import draw_pixel_samples
+from .pixel_samples import draw_pixel_samples, sample_mean_image
 from .registry import register
 
 RADIUS = 3
@@ -69,10 +69,7 @@ class _FilteredMethod(Method):
 
     def run(self, context, budget):
         timer = PhaseTimer()
-        with timer("sampling"):
-            samples = draw_pixel_samples(context, budget)
-        with timer("integration"):
-            image = samples.pixel_means()
+        samples, image = sample_mean_image(context, budget, timer)
         filtered, details = self.filter(context, budget, samples, image, timer)
         details.update(nonfinite_samples=samples.nonfinite)
         return MethodResult(image=np.asarray(filtered, dtype=np.float32), seconds=timer.seconds,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .base import Method, MethodResult, PhaseTimer
-from .pixel_samples import draw_pixel_samples
+from .pixel_samples import sample_mean_image
 from .registry import register
 
 
@@ -24,10 +24,7 @@ class PathTracing(Method):
     def run(self, context, budget):
         timer = PhaseTimer()
         if context.kind == "indirect":
-            with timer("sampling"):
-                samples = draw_pixel_samples(context, budget)
-            with timer("integration"):
-                image = samples.pixel_means()
+            samples, image = sample_mean_image(context, budget, timer)
             details = {"integrator": "sparselt indirect estimator", "nonfinite_samples": samples.nonfinite}
         else:
             image, seconds = context.scene.render_path(budget.spp, context.max_depth, budget.seed)

@@ -83,6 +83,15 @@ def draw_pixel_samples(context, budget, *, resolution=None):
     return PixelSamples(values=values, cells=cells, spp=budget.spp, resolution=(width, height), nonfinite=nonfinite)
 
 
+def sample_mean_image(context, budget, timer):
+    """Draw the budget's samples ('sampling') and average them per pixel ('integration'): the path-traced image."""
+    with timer("sampling"):
+        samples = draw_pixel_samples(context, budget)
+    with timer("integration"):
+        image = samples.pixel_means()
+    return samples, image
+
+
 def cell_means(samples, size):
     """Luminance measurements of the sampled cells (thesis 8.1.1: a cell that receives samples is measured by their mean).
 

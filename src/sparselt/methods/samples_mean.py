@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .base import Method, MethodResult, PhaseTimer
-from .pixel_samples import draw_pixel_samples
+from .pixel_samples import sample_mean_image
 from .registry import register
 
 
@@ -17,9 +17,6 @@ class SamplesMean(Method):
 
     def run(self, context, budget):
         timer = PhaseTimer()
-        with timer("sampling"):
-            samples = draw_pixel_samples(context, budget)
-        with timer("integration"):
-            image = samples.pixel_means()
+        samples, image = sample_mean_image(context, budget, timer)
         return MethodResult(image=image, seconds=timer.seconds, path_samples=samples.values.shape[0],
                             details={"nonfinite_samples": samples.nonfinite})
