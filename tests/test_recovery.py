@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sparselt.fourier.sparse import SparseFourier
-from sparselt.operators import PartialFourier, dot_test
+from sparselt.operators import LinearOperator, PartialFourier, dottest
 from sparselt.recovery.cosamp import cosamp, omp
 
 SHAPES = [(64,), (63,), (12, 10), (8, 6, 5), (6, 5, 4, 4)]
@@ -14,7 +14,7 @@ SHAPES = [(64,), (63,), (12, 10), (8, 6, 5), (6, 5, 4, 4)]
 
 def _coordinate_vector(operator, rng):
     """A random vector of the operator's coordinate space (non-canonical entries zero, self-conjugate real)."""
-    vector = (rng.standard_normal(operator.input_size) + 1j * rng.standard_normal(operator.input_size)).astype(operator.input_dtype)
+    vector = (rng.standard_normal(operator.input_size) + 1j * rng.standard_normal(operator.input_size)).astype(operator.dtype)
     if operator.real:
         vector[operator._noncanonical] = 0
         vector[operator._selfconjugate] = vector[operator._selfconjugate].real
@@ -29,7 +29,63 @@ def test_adjoint(shape, real, dtype, tolerance):
     size = math.prod(shape)
     operator = PartialFourier(shape, rng.choice(size, size // 3, replace=False), real=real, dtype=dtype)
     for seed in range(3):
-        assert dot_test(operator, seed=seed, input_vector=_coordinate_vector(operator, rng)) < tolerance
+        assert dottest(operator, seed=seed, rtol=tolerance, input_vector=_coordinate_vector(operator, rng))
+        assert dottest(operator, seed=seed, rtol=tolerance)  # any complex vector: the real inner product holds
+
+
+@pytest.mark.parametrize("real", [True, False])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_operator_in_pylops_terms(real, dtype):
+    shape = (6, 5, 4)
+    operator = PartialFourier(shape, np.arange(0, 120, 3), real=real, dtype=dtype)
+    assert operator.shape == (40, math.prod(operator.dims)) and operator.dimsd == (40,)
+    assert operator.clinear is (not real)
+    y = np.random.default_rng(1).standard_normal(40).astype(operator.data_dtype)
+    np.testing.assert_array_equal(operator.H.matvec(y), operator.rmatvec(y))
+    x = operator.rmatvec(y)
+    np.testing.assert_array_equal(operator @ x, operator.matvec(x))
+    assert operator.H.H is operator
+    assert dottest(operator.H)
+
+
+class _WrongAdjoint(LinearOperator):
+    """A 3x4 matrix whose 'adjoint' forgets the conjugate transpose."""
+
+    def __init__(self):
+        self.matrix = np.arange(12.0).reshape(3, 4) + 1j
+        self.dims, self.dimsd, self.dtype, self.clinear = (4,), (3,), np.dtype(np.complex128), True
+
+    def _matvec(self, vector):
+        return self.matrix @ vector
+
+    def _rmatvec(self, vector):
+        return self.matrix.T @ vector  # should be .conj().T
+
+
+def test_dottest_raises_on_a_wrong_adjoint():
+    with pytest.raises(AssertionError, match="dot test failed"):
+        dottest(_WrongAdjoint())
+    assert dottest(_WrongAdjoint(), raise_error=False) is False
+
+
+def test_matvec_checks_the_vector_size():
+    operator = PartialFourier((4, 4), np.arange(8))
+    with pytest.raises(ValueError, match="matvec takes 12 values"):
+        operator.matvec(np.zeros(5))
+
+
+def test_cosamp_callback_sees_every_iteration_and_can_stop():
+    rng = np.random.default_rng(3)
+    shape = (16, 16)
+    signal = np.real(np.fft.ifft2(np.where(rng.random(shape) < 0.02, rng.standard_normal(shape), 0))).astype(np.float32)
+    operator = PartialFourier(shape, rng.choice(256, 120, replace=False), dtype=np.float32)
+    seen = []
+    result = cosamp(operator, signal.reshape(-1)[operator.indices], 12,
+                    callback=lambda iteration, residual, support, values: seen.append((iteration, residual)) or iteration == 2)
+    assert result.stop_reason == "callback" and [i for i, _ in seen] == [1, 2]
+    assert seen[-1][1] == pytest.approx(result.residual_history[1])
+    with pytest.raises(TypeError, match="callback must be callable"):
+        cosamp(operator, signal.reshape(-1)[operator.indices], 12, callback=3)
 
 
 @pytest.mark.parametrize("shape", SHAPES)
@@ -39,7 +95,7 @@ def test_fully_sampled_operator_is_an_isometry_onto_the_signal(shape, real):
     rng = np.random.default_rng(7)
     operator = PartialFourier(shape, np.arange(math.prod(shape)), real=real, dtype=np.float64)
     vector = _coordinate_vector(operator, rng)
-    samples = operator.forward(vector)
+    samples = operator.matvec(vector)
     assert np.linalg.norm(samples) == pytest.approx(np.linalg.norm(vector), rel=1e-12)
     support = np.flatnonzero(vector)
     estimate = operator.to_sparse_fourier(support, vector[support])

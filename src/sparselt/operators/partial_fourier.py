@@ -123,8 +123,11 @@ class PartialFourier(LinearOperator):
             self.coefficient_shape = self.grid_shape
         self.input_size = math.prod(self.coefficient_shape)
         self.output_size = int(indices.size)
-        self.input_dtype = self.coefficient_dtype
-        self.output_dtype = self.sample_dtype
+        self.dims = self.coefficient_shape
+        self.dimsd = (self.output_size,)
+        self.dtype = self.coefficient_dtype
+        self.data_dtype = self.sample_dtype
+        self.clinear = not self.real  # half-spectrum coordinates of a real signal: real-linear only
         self._axes = tuple(range(len(self.grid_shape)))
         self.transforms = 0  # full FFTs performed, for cost accounting
         self._weights_support = None
@@ -244,17 +247,14 @@ class PartialFourier(LinearOperator):
 
     # -- LinearOperator interface -----------------------------------------------
 
-    def forward(self, vector):
+    def _matvec(self, vector):
         """``A u`` for a full coefficient vector (length ``input_size``)."""
-        vector = np.asarray(vector).reshape(-1)
-        if vector.size != self.input_size:
-            raise ValueError(f"expected {self.input_size} coefficients, got {vector.size}")
         support = np.flatnonzero(vector)
         if self.real:
             support = np.setdiff1d(support, self._noncanonical)
         return self.forward_on(support, vector[support])
 
-    def adjoint(self, samples):
+    def _rmatvec(self, samples):
         """``A^* y`` as a full coefficient vector (zero on non-canonical entries)."""
         spectrum = self.transform_samples(samples).reshape(-1)
         if not self.real:

@@ -29,13 +29,14 @@ import time
 
 import numpy as np
 
-from ..operators.partial_fourier import PartialFourier
+from ..operators.base import SupportRestricted
 from .result import RecoveryResult
 
 
 def _validate(operator, samples, sparsity):
-    if not isinstance(operator, PartialFourier):
-        raise TypeError(f"operator must be a PartialFourier, got {type(operator).__name__}")
+    if not isinstance(operator, SupportRestricted):
+        raise TypeError(f"operator must provide the support-restricted operations of "
+                        f"sparselt.operators.SupportRestricted (as PartialFourier does), got {type(operator).__name__}")
     samples = np.asarray(samples)
     if samples.ndim != 1 or samples.size != operator.output_size:
         raise ValueError(f"y must be a vector of {operator.output_size} samples (one per sampled cell), got shape {samples.shape}")
@@ -147,8 +148,14 @@ def _conjugate_gradient(operator, support, values, samples, residual, gradient, 
     return values, residual
 
 
+def _check_callback(callback):
+    if callback is not None and not callable(callback):
+        raise TypeError(f"callback must be callable or None, got {callback!r}")
+    return callback
+
+
 def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugate_gradient_steps=4,
-           patience=2, stagnation=1e-3):
+           patience=2, stagnation=1e-3, callback=None):
     """Compressive Sampling Matching Pursuit (Needell & Tropp 2009; thesis Algorithm 2).
 
     Parameters
@@ -169,6 +176,10 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     patience, stagnation : int, float, optional
         Stop when the residual has not fallen by a relative ``stagnation``
         for ``patience`` iterations; the best estimate is returned.
+    callback : callable, optional
+        Called after every iteration as ``callback(iteration, relative_residual,
+        support, values)`` (PyLops' and sigpy's hook); returning True stops
+        the run (stop reason ``'callback'``).
 
     Returns
     -------
@@ -187,6 +198,7 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     """
     samples = _validate(operator, y, sparsity)
     tolerance = _check_tolerance(tolerance)
+    callback = _check_callback(callback)
     clock = _Clock(("proxy", "select", "least_squares", "prune", "residual"))
     transforms_before = operator.transforms
     norm = float(np.linalg.norm(samples)) or 1.0
@@ -227,6 +239,9 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
         if relative <= tolerance:
             stop_reason = "converged"
             break
+        if callback is not None and callback(iteration, relative, support, values):
+            stop_reason = "callback"
+            break
         if quiet >= patience:
             stop_reason = "stagnated"
             break
@@ -234,7 +249,7 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     return _result(operator, support, values, history, iteration, clock, stop_reason, transforms_before)
 
 
-def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50):
+def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50, callback=None):
     """Orthogonal Matching Pursuit (thesis Algorithm 1): the small-problem baseline.
 
     One coefficient entry (a conjugate pair for real signals) joins the
@@ -247,6 +262,7 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50):
     """
     samples = _validate(operator, y, sparsity)
     tolerance = _check_tolerance(tolerance)
+    callback = _check_callback(callback)
     clock = _Clock(("proxy", "select", "least_squares", "residual"))
     transforms_before = operator.transforms
     norm = float(np.linalg.norm(samples)) or 1.0
@@ -278,6 +294,9 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50):
         clock("residual", start)
         if relative <= tolerance:
             stop_reason = "converged"
+            break
+        if callback is not None and callback(iteration, relative, support, values):
+            stop_reason = "callback"
             break
         if int(operator.coefficient_counts(support).sum()) >= sparsity or support.size >= operator.input_size:
             break
