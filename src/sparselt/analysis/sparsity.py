@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fourier import fft
+from ..measurement import progress_bar
 
 __all__ = [
     "DOMAINS",
@@ -605,11 +606,8 @@ class _SignalReader:
 
 
 def _progress(iterable, *, total, description, enabled):
-    if not enabled:
-        return iterable
-    from tqdm.auto import tqdm
-
-    return tqdm(iterable, total=total, desc=description, unit="piece")
+    bar = progress_bar(enabled, total=total, description=description, unit="piece", iterable=iterable)
+    return iterable if bar is None else bar
 
 
 def _half_spectrum_axes(shape, axes):

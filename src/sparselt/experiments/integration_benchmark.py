@@ -71,7 +71,7 @@ import numpy as np
 
 from ..fourier.integration import METHODS, integrate
 from ..fourier.sparse import SparseFourier
-from ..measurement import reset_peak, status_bytes
+from ..measurement import meminfo_bytes, reset_peak, status_bytes
 from ..provenance import atomic_write_bytes, check_output_folder, environment_record, write_json
 
 DEFAULT_SIZES = (32, 48, 64, 96, 128)
@@ -342,11 +342,8 @@ def _child_main(arguments):
 
 
 def _available_bytes():
-    with open("/proc/meminfo", encoding="ascii") as handle:
-        for line in handle:
-            if line.startswith("MemAvailable:"):
-                return int(line.split()[1]) * 1024
-    return None
+    """Memory a child measurement may use (a seam the tests replace to simulate a small machine)."""
+    return meminfo_bytes("MemAvailable")
 
 
 def _child_environment():
@@ -502,7 +499,7 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
         "memory_floor_bytes": MEMORY_FLOOR_BYTES,
         "fft_threads": _fft_threads(),
         "cpu_count": os.cpu_count(),
-        "memory_total_bytes": _total_bytes(),
+        "memory_total_bytes": meminfo_bytes("MemTotal"),
     }
     environment = environment_record()
     write_json(os.path.join(out, "config.json"), {"config": config, "environment": environment})
@@ -544,14 +541,6 @@ def _fft_threads():
     from ..fourier import fft
 
     return fft.default_threads()
-
-
-def _total_bytes():
-    with open("/proc/meminfo", encoding="ascii") as handle:
-        for line in handle:
-            if line.startswith("MemTotal:"):
-                return int(line.split()[1]) * 1024
-    return None
 
 
 def _fit_exponent(points):

@@ -11,10 +11,11 @@ the harness.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .. import measurement
 
 TIME_PHASES = ("sampling", "reconstruction", "integration", "other")
 WARM_UP_SEED = 0xFFFF_FFFF  # never a comparison seed (those are < 2**32 - 1)
@@ -91,26 +92,11 @@ class ComparisonContext:
         return (self.resolution[0] // self.grid_shape[0], self.resolution[1] // self.grid_shape[1])
 
 
-class PhaseTimer:
-    """Accumulate wall time per phase: ``with timer('sampling'): ...``."""
+class PhaseTimer(measurement.PhaseTimer):
+    """:class:`sparselt.measurement.PhaseTimer` over the comparison's phases, :data:`TIME_PHASES`."""
 
     def __init__(self, phases=TIME_PHASES):
-        self.seconds = {phase: 0.0 for phase in phases}
-        self._phase = None
-
-    def __call__(self, phase):
-        if phase not in self.seconds:
-            raise ValueError(f"unknown phase {phase!r}; phases are {', '.join(self.seconds)}")
-        self._phase = phase
-        return self
-
-    def __enter__(self):
-        self._start = time.perf_counter()
-        return self
-
-    def __exit__(self, *exception):
-        self.seconds[self._phase] += time.perf_counter() - self._start
-        return False
+        super().__init__(phases)
 
 
 class Method:

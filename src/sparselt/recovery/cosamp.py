@@ -25,10 +25,10 @@ estimate is kept), or after ``max_iterations``.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
+from ..measurement import PhaseTimer
 from ..operators.base import SupportRestricted
 from .result import RecoveryResult
 
@@ -111,16 +111,6 @@ def _sorted_union(first, second):
     return merged[np.concatenate([[True], merged[1:] != merged[:-1]])] if merged.size else merged
 
 
-class _Clock:
-    def __init__(self, phases):
-        self.time = {phase: 0.0 for phase in phases}
-
-    def __call__(self, phase, start):
-        now = time.perf_counter()
-        self.time[phase] += now - start
-        return now
-
-
 def _conjugate_gradient(operator, support, values, samples, residual, gradient, steps):
     """Minimise ``||samples - A_T u||`` from ``values``; ``residual`` and ``gradient`` belong to ``values``.
 
@@ -146,6 +136,17 @@ def _conjugate_gradient(operator, support, values, samples, residual, gradient, 
         direction = gradient + (new_norm / gradient_norm) * direction
         gradient_norm = new_norm
     return values, residual
+
+
+def _warm_least_squares(operator, merged, support, values, spectrum, samples, residual, steps):
+    """Least squares on ``merged``, warm-started from ``values`` on ``support``.
+
+    The first gradient is the proxy ``spectrum`` restricted to ``merged``, so it costs no transform.
+    """
+    warm = np.zeros(merged.size, dtype=operator.coefficient_dtype)
+    warm[np.searchsorted(merged, support)] = values
+    gradient = operator.adjoint_on(merged, None, spectrum)
+    return _conjugate_gradient(operator, merged, warm, samples, residual, gradient, steps)
 
 
 def _check_callback(callback):
@@ -199,7 +200,7 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     samples = _validate(operator, y, sparsity)
     tolerance = _check_tolerance(tolerance)
     callback = _check_callback(callback)
-    clock = _Clock(("proxy", "select", "least_squares", "prune", "residual"))
+    clock = PhaseTimer(("proxy", "select", "least_squares", "prune", "residual"))
     transforms_before = operator.transforms
     norm = float(np.linalg.norm(samples)) or 1.0
     support = np.zeros(0, dtype=np.int64)
@@ -211,25 +212,22 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     quiet = 0
     iteration = 0
     for iteration in range(1, max_iterations + 1):
-        start = time.perf_counter()
-        spectrum = operator.transform_samples(residual)
-        energy = operator.proxy_energy(spectrum)
-        start = clock("proxy", start)
-        merged = _sorted_union(_largest(energy, 2 * sparsity, operator), support)
-        start = clock("select", start)
-        warm = np.zeros(merged.size, dtype=operator.coefficient_dtype)
-        warm[np.searchsorted(merged, support)] = values
-        gradient = operator.adjoint_on(merged, None, spectrum)
-        merged_values, _ = _conjugate_gradient(operator, merged, warm, samples, residual, gradient, conjugate_gradient_steps)
-        start = clock("least_squares", start)
-        magnitude = (merged_values.real.astype(np.float64) ** 2 + merged_values.imag.astype(np.float64) ** 2)
-        keep = np.searchsorted(merged, _largest(magnitude, sparsity, operator, labels=merged))
-        support, values = merged[keep], merged_values[keep]
-        start = clock("prune", start)
-        residual = samples - operator.forward_on(support, values)
-        relative = float(np.linalg.norm(residual)) / norm
-        history.append(relative)
-        clock("residual", start)
+        with clock("proxy"):
+            spectrum = operator.transform_samples(residual)
+            energy = operator.proxy_energy(spectrum)
+        with clock("select"):
+            merged = _sorted_union(_largest(energy, 2 * sparsity, operator), support)
+        with clock("least_squares"):
+            merged_values, _ = _warm_least_squares(operator, merged, support, values, spectrum, samples, residual,
+                                                   conjugate_gradient_steps)
+        with clock("prune"):
+            magnitude = (merged_values.real.astype(np.float64) ** 2 + merged_values.imag.astype(np.float64) ** 2)
+            keep = np.searchsorted(merged, _largest(magnitude, sparsity, operator, labels=merged))
+            support, values = merged[keep], merged_values[keep]
+        with clock("residual"):
+            residual = samples - operator.forward_on(support, values)
+            relative = float(np.linalg.norm(residual)) / norm
+            history.append(relative)
         if relative < best[0] * (1.0 - stagnation):
             quiet = 0
         else:
@@ -263,7 +261,7 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50, c
     samples = _validate(operator, y, sparsity)
     tolerance = _check_tolerance(tolerance)
     callback = _check_callback(callback)
-    clock = _Clock(("proxy", "select", "least_squares", "residual"))
+    clock = PhaseTimer(("proxy", "select", "least_squares", "residual"))
     transforms_before = operator.transforms
     norm = float(np.linalg.norm(samples)) or 1.0
     support = np.zeros(0, dtype=np.int64)
@@ -274,24 +272,21 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50, c
     iteration = 0
     while True:
         iteration += 1
-        start = time.perf_counter()
-        spectrum = operator.transform_samples(residual)
-        energy = operator.proxy_energy(spectrum)
-        energy[support] = 0.0
-        start = clock("proxy", start)
-        chosen = int(np.argmax(energy))
-        merged = _sorted_union(support, np.array([chosen]))
-        start = clock("select", start)
-        warm = np.zeros(merged.size, dtype=operator.coefficient_dtype)
-        warm[np.searchsorted(merged, support)] = values
-        gradient = operator.adjoint_on(merged, None, spectrum)
-        values, residual = _conjugate_gradient(operator, merged, warm, samples, residual, gradient, conjugate_gradient_steps)
-        support = merged
-        start = clock("least_squares", start)
-        residual = samples - operator.forward_on(support, values)
-        relative = float(np.linalg.norm(residual)) / norm
-        history.append(relative)
-        clock("residual", start)
+        with clock("proxy"):
+            spectrum = operator.transform_samples(residual)
+            energy = operator.proxy_energy(spectrum)
+            energy[support] = 0.0
+        with clock("select"):
+            chosen = int(np.argmax(energy))
+            merged = _sorted_union(support, np.array([chosen]))
+        with clock("least_squares"):
+            values, residual = _warm_least_squares(operator, merged, support, values, spectrum, samples, residual,
+                                                   conjugate_gradient_steps)
+            support = merged
+        with clock("residual"):
+            residual = samples - operator.forward_on(support, values)
+            relative = float(np.linalg.norm(residual)) / norm
+            history.append(relative)
         if relative <= tolerance:
             stop_reason = "converged"
             break
@@ -309,7 +304,7 @@ def _result(operator, support, values, history, iterations, clock, stop_reason, 
         residual_history=tuple(history),
         iterations=iterations,
         samples=operator.output_size,
-        time=clock.time,
+        time=dict(clock.seconds),
         stop_reason=stop_reason,
         transforms=operator.transforms - transforms_before,
     )

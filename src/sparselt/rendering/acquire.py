@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import check_integer  # noqa: F401  (re-exported: callers import it from here)
+from ..measurement import available_memory, progress_bar
 from ..provenance import environment_record, format_bytes, read_json, write_json
 from ..signal import (
     DATA_FILE,
@@ -129,17 +130,6 @@ def _check_shape_matches(config, layout):
         )
 
 
-def _available_memory():
-    try:
-        with open("/proc/meminfo", encoding="ascii") as handle:
-            for line in handle:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-
-
 def signal_bytes(shape):
     """Bytes of a float32 RGB signal of this grid shape."""
     return math.prod(shape) * 3 * 4
@@ -196,7 +186,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         _check_shape_matches(config, layout)
     nbytes = signal_bytes(config.shape)
     if path is None:
-        available = _available_memory()
+        available = available_memory()
         if nbytes > available // 2:
             raise ValueError(
                 f"a signal of shape {tuple(config.shape)} takes {format_bytes(nbytes)}, more than half of the "
@@ -292,14 +282,8 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
 
 
 def _progress_bar(enabled, total, finished_chunks, chunk, cells, config):
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    bar = tqdm(total=total, unit="sample", unit_scale=True, desc=f"{config.kind} {config.scene}", dynamic_ncols=True)
-    if finished_chunks:
-        bar.update(min(cells, finished_chunks * chunk) * config.spp)
-    return bar
+    done = min(cells, finished_chunks * chunk) * config.spp if finished_chunks else 0
+    return progress_bar(enabled, total=total, description=f"{config.kind} {config.scene}", unit="sample", initial=done)
 
 
 def _meta(config, spec, scene, layout, *, status):

@@ -13,6 +13,7 @@ import os
 import numpy as np
 
 from ..images import write_png
+from ..measurement import progress_bar
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
 from ..checks import check_integer
 from .scenes import get_scene
@@ -196,11 +197,7 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     passes = [min(REFERENCE_PASS_SPP, spp - start) for start in range(0, spp, REFERENCE_PASS_SPP)]
     total = np.zeros((loaded.height, loaded.width, 3), dtype=np.float64)
     seconds = 0.0
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=spp, unit="spp", desc=f"reference {loaded.spec.name} {spp} spp", dynamic_ncols=True)
+    bar = progress_bar(progress, total=spp, description=f"reference {loaded.spec.name} {spp} spp", unit="spp")
     try:
         for index, pass_spp in enumerate(passes):
             pass_seed = seed * 65536 + index
