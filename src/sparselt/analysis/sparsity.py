@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fourier import fft
+from ..fourier.hermitian import real_fft_multiplicity
 from ..measurement import progress_bar
 
 __all__ = [
@@ -618,18 +619,6 @@ def _half_spectrum_axes(shape, axes):
     return tuple(axes) + (halved,), halved
 
 
-def _conjugate_pair_weights(size, kept):
-    """Multiplicity of each kept frequency 0..kept-1 of a real FFT of length ``size``.
-
-    Frequency ``j`` and ``size - j`` have equal magnitudes (Hermitian
-    symmetry); only ``j = 0`` and, for even sizes, ``j = size/2`` are their own
-    mirror images.
-    """
-    index = np.arange(kept)
-    self_conjugate = (index == 0) | ((size % 2 == 0) & (2 * index == size))
-    return np.where(self_conjugate, 1, 2).astype(np.uint8)
-
-
 def _read_channel(reader, channel, shape, dtype, piece_values):
     out = np.empty(shape, dtype=dtype)
     for index in _piece_indices(shape, piece_values):
@@ -764,7 +753,7 @@ def _stream_fourier(reader, shape, dtype, histogram, channel, budget, scratch, p
             handle.flush()
             columns = math.prod(kept_shape)
             stride = math.prod(kept_shape[halved - split + 1:])
-            pair_weights = _conjugate_pair_weights(shape[halved], kept_shape[halved - split])
+            pair_weights = real_fft_multiplicity(shape[halved], kept_shape[halved - split])
             mapping = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
             spectrum = None
             try:

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..fourier import fft
 from ..fourier.integration import integrate, mean_over_axes
-from ..fourier.sparse import SparseFourier, partner_indices
+from ..fourier.hermitian import largest_closed
+from ..fourier.sparse import SparseFourier
 
 
 def check_gamma(gamma):
@@ -79,15 +80,12 @@ def inverse_gamma_map(mapped, gamma, maximum):
 def largest_coefficients(spectrum, count):
     """Flat indices of the ``count`` largest-energy entries of a real signal's full spectrum.
 
-    Hermitian partners have equal energy and are kept together, so the
-    result has ``count`` or ``count + 1`` entries. O(N) by partial sorting.
+    The top-K rule of :mod:`sparselt.fourier.hermitian`: Hermitian partners
+    are kept together and the result has ``count`` or ``count - 1`` entries.
+    O(N) by partial sorting.
     """
-    energy = np.abs(spectrum.ravel()) ** 2
-    count = min(int(count), energy.size)
-    if count == energy.size:
-        return np.arange(energy.size, dtype=np.int64)
-    chosen = np.argpartition(energy, energy.size - count)[energy.size - count:]
-    return np.union1d(chosen, partner_indices(spectrum.shape, chosen))
+    spectrum = np.asarray(spectrum)
+    return largest_closed(np.abs(spectrum.ravel()) ** 2, count, spectrum.shape)
 
 
 def hard_threshold_image(data, fraction, *, gamma=1.0, keep_axes=(0, 1)):

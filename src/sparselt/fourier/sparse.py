@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import fft
+from .hermitian import largest_closed, partner_indices  # noqa: F401  (partner_indices re-exported)
 
 
 def check_shape(shape):
@@ -32,14 +33,6 @@ def check_shape(shape):
     if not shape or any(size <= 0 for size in shape):
         raise ValueError(f"shape must be a non-empty sequence of positive integers, got {shape!r}")
     return shape
-
-
-def partner_indices(shape, indices):
-    """Flat index of ``-k mod shape`` for each flat index ``k`` (the Hermitian partner)."""
-    shape = check_shape(shape)
-    coordinates = np.unravel_index(np.asarray(indices, dtype=np.int64), shape)
-    negated = tuple((-coordinate) % size for coordinate, size in zip(coordinates, shape))
-    return np.ravel_multi_index(negated, shape).astype(np.int64)
 
 
 class SparseFourier:
@@ -200,11 +193,11 @@ class SparseFourier:
         return energy.reshape(self.sparsity, -1).sum(axis=1)
 
     def largest(self, count):
-        """The ``count`` coefficients of largest energy (ties broken by index).
+        """The ``count`` coefficients of largest energy, by the top-K rule of :mod:`sparselt.fourier.hermitian`.
 
-        For a ``real`` representation partners are kept together: pairs are
-        ranked by their common energy and the result has ``count`` or
-        ``count - 1`` coefficients (a pair is never split).
+        For a ``real`` representation Hermitian pairs are kept together: the
+        result has ``count`` or ``count - 1`` coefficients. Ties go to the
+        smaller flat index.
         """
         count = int(count)
         if count < 0:
@@ -213,17 +206,10 @@ class SparseFourier:
             return self
         energy = self.energy()
         if not self.real:
-            keep = np.sort(np.argsort(-energy, kind="stable")[:count])
+            keep = np.sort(np.lexsort((self.indices, -energy))[:count])
             return SparseFourier(self.shape, self.indices[keep], self.values[keep])
-        partners = self.partners()
-        group = np.minimum(self.indices, partners)  # one key per Hermitian pair
-        order = np.lexsort((group, -energy))
-        ranked_groups = group[order]
-        _, first = np.unique(ranked_groups, return_index=True)
-        group_order = ranked_groups[np.sort(first)]
-        sizes = np.where(group_order == partner_indices(self.shape, group_order), 1, 2)
-        kept_groups = group_order[np.cumsum(sizes) <= count]
-        keep = np.isin(group, kept_groups)
+        kept = largest_closed(energy, count, self.shape, indices=self.indices)
+        keep = np.searchsorted(self.indices, kept)
         return SparseFourier(self.shape, self.indices[keep], self.values[keep], real=True)
 
     def __repr__(self):

@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from ..fourier.hermitian import keep_within
 from ..measurement import PhaseTimer
 from ..operators.base import SupportRestricted
 from .result import RecoveryResult
@@ -70,6 +71,9 @@ def _check_tolerance(tolerance):
 def _largest(energy, budget, operator, labels=None):
     """Coefficient entries of largest energy whose counts add up to at most ``budget``.
 
+    The top-K rule of :mod:`sparselt.fourier.hermitian` on half-spectrum
+    entries, each of which stands for a whole Hermitian group (1 or 2 counts).
+
     ``energy[i]`` belongs to flat coefficient index ``labels[i]`` (default ``i``).
     """
     guess = min(energy.size, (budget // 2 + 64) if operator.real else budget)
@@ -79,8 +83,7 @@ def _largest(energy, budget, operator, labels=None):
         top = np.arange(energy.size)
     top = top[np.argsort(-energy[top], kind="stable")]
     chosen = top if labels is None else labels[top]
-    counts = np.cumsum(operator.coefficient_counts(chosen))
-    return np.sort(chosen[counts <= budget])
+    return np.sort(chosen[keep_within(operator.coefficient_counts(chosen), budget)])
 
 
 def _top_entries(energy, count):
