@@ -200,3 +200,20 @@ def test_compare_refuses_more_than_32_bit_samples_per_pass(tmp_path):
     with pytest.raises(ValueError, match="32 bits"):
         compare(config, tmp_path / "c", progress=False)
     assert not os.path.exists(tmp_path / "c")
+
+
+def test_sft_refuses_samples_whose_energy_overflows():
+    from sparselt.recovery.sft import sft
+
+    with pytest.raises(ValueError, match="overflow float64"):
+        sft(lambda indices: np.full(indices.shape, 1e300), 256, 4, seed=0)
+
+
+def test_cli_constants_come_from_their_modules():
+    from sparselt.cli import build_parser
+    from sparselt.rendering.layout import KINDS
+
+    parser = build_parser()
+    sample = next(action for action in parser._subparsers._group_actions[0].choices["sample"]._actions
+                  if action.dest == "kind")
+    assert tuple(sample.choices) == KINDS

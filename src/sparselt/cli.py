@@ -5,6 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
+# Constants live where they are defined; these modules import neither Mitsuba nor Dr.Jit.
+from .experiments.compare import KINDS as COMPARE_KINDS
+from .experiments.sparsity_analysis import DEFAULT_GAMMAS
+from .methods.guided import MODES as GUIDING_MODES
+from .rendering.acquire import DEFAULT_MAX_DEPTH, DEFAULT_SPP, NONFINITE_POLICIES
+from .rendering.layout import KINDS
+from .rendering.mitsuba_backend import DEFAULT_VARIANT, SUPPORTED_VARIANTS
+
 
 def _number_list(convert, example):
     """argparse type for comma-separated numbers (``convert`` each), e.g. ``64,64,8,8``."""
@@ -45,7 +53,7 @@ def _methods(text):
 def _add_camera_options(parser):
     parser.add_argument("--aperture", type=float, default=None, help="switch the camera to a thin lens of this radius")
     parser.add_argument("--focus-distance", type=float, default=None, help="focus distance of the thin lens")
-    parser.add_argument("--variant", default="llvm_ad_rgb", choices=("llvm_ad_rgb", "cuda_ad_rgb"), help="Mitsuba variant (default: %(default)s)")
+    parser.add_argument("--variant", default=DEFAULT_VARIANT, choices=SUPPORTED_VARIANTS, help="Mitsuba variant (default: %(default)s)")
 
 
 def build_parser():
@@ -62,16 +70,16 @@ def build_parser():
         "An interrupted run resumes when the same command is run again.",
     )
     sample.add_argument("--scene", required=True, help="built-in scene name (see 'sparselt scenes') or Mitsuba XML file")
-    sample.add_argument("--kind", required=True, choices=("path", "path-indirect", "dof", "indirect"), help="signal kind")
+    sample.add_argument("--kind", required=True, choices=KINDS, help="signal kind")
     group = sample.add_mutually_exclusive_group(required=True)
     group.add_argument("--shape", type=_shape, help="resolution of each axis, e.g. 64,64,8,8 (image plane first)")
     group.add_argument("--preset", choices=("thesis",), help="thesis resolutions: path 100x100x4^8, dof/indirect 250x250x16x16")
-    sample.add_argument("--spp", type=int, default=64, help="jittered samples per cell (default: %(default)s)")
+    sample.add_argument("--spp", type=int, default=DEFAULT_SPP, help="jittered samples per cell (default: %(default)s)")
     sample.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    sample.add_argument("--max-depth", type=int, default=3, help="longest path, Mitsuba convention (default: %(default)s)")
+    sample.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path, Mitsuba convention (default: %(default)s)")
     sample.add_argument("--out", required=True, help="signal folder to write")
     sample.add_argument("--overwrite", action="store_true", help="replace an existing signal")
-    sample.add_argument("--nonfinite", choices=("error", "zero"), default="error",
+    sample.add_argument("--nonfinite", choices=NONFINITE_POLICIES, default=NONFINITE_POLICIES[0],
                         help="NaN/Inf samples: stop with an error (default) or count them and use 0")
     sample.add_argument("--chunk-cells", type=int, default=None, help="cells per chunk (default: about 4M samples)")
     sample.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -85,7 +93,7 @@ def build_parser():
     )
     render.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
     render.add_argument("--spp", type=int, required=True, help="samples per pixel")
-    render.add_argument("--max-depth", type=int, default=3, help="longest path (default: %(default)s)")
+    render.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
     render.add_argument("--seed", type=int, default=0, help="sampler seed (default: %(default)s)")
     render.add_argument("--resolution", type=_shape, default=None, help="width,height (default: the scene's)")
     render.add_argument("--out", required=True, help="output folder")
@@ -100,7 +108,7 @@ def build_parser():
         "Fourier reconstructions against the signal's image (Figures 5.2-5.4, 7.1-7.6).",
     )
     analyze.add_argument("signal", help="signal folder")
-    analyze.add_argument("--gamma", type=_numbers, default=(1.0, 0.5, 0.25, 0.1, 0.05),
+    analyze.add_argument("--gamma", type=_numbers, default=DEFAULT_GAMMAS,
                          help="gamma mappings, comma separated (default: 1,0.5,0.25,0.1,0.05)")
     analyze.add_argument("--fractions", type=_numbers, default=None,
                          help="fractions of Fourier coefficients kept, comma separated (default: 1e-5 .. 0.1)")
@@ -130,7 +138,7 @@ def build_parser():
         "quality_vs_time.png, image_grid.png, table_8.md, images/ and compare.json; a rerun resumes.",
     )
     compare.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
-    compare.add_argument("--kind", required=True, choices=("dof", "indirect", "path"), help="signal kind")
+    compare.add_argument("--kind", required=True, choices=COMPARE_KINDS, help="signal kind")
     compare.add_argument("--shape", type=_shape, required=True, help="signal grid of the kind, e.g. 250,250,16,16")
     compare.add_argument("--methods", type=_names, default=("pt", "cosamp"),
                          help="comma-separated registered methods (default: pt,cosamp; 'sparselt methods' lists them)")
@@ -138,13 +146,13 @@ def build_parser():
     compare.add_argument("--seeds", type=_shape, default=(1,), help="seeds, comma separated (default: 1)")
     compare.add_argument("--resolution", type=_shape, default=None, help="output width,height (default: the shape's image axes)")
     compare.add_argument("--reference-spp", type=int, default=4096, help="reference samples per pixel (default: %(default)s)")
-    compare.add_argument("--max-depth", type=int, default=3, help="longest path (default: %(default)s)")
+    compare.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
     compare.add_argument("--gamma", type=float, default=None, help="gamma of eq. 7.1 for CoSaMP (default 0.25; thesis: 0.25 DoF, 0.5 architecture)")
     compare.add_argument("--sparsity", type=int, default=None, help="K for CoSaMP (default N/200)")
     compare.add_argument("--thesis-faithful", action="store_true", help="make 'cosamp' follow thesis 8.1.1 exactly")
     compare.add_argument("--map-spp", type=int, default=None, help="guided methods: pilot samples per map pixel (default 16)")
     compare.add_argument("--defensive", type=float, default=None, help="guided methods: weight of the uniform density (default 0.1)")
-    compare.add_argument("--guiding-mode", choices=("per-pixel", "global"), default=None,
+    compare.add_argument("--guiding-mode", choices=GUIDING_MODES, default=None,
                          help="guided methods: per-pixel conditional (default) or global cells")
     compare.add_argument("--caustic-mask", action="store_true",
                          help="also report relMSE inside a caustic mask (bright spots on diffuse surfaces)")

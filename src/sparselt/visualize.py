@@ -6,8 +6,7 @@ import os
 
 import numpy as np
 
-from .analysis.metrics import reference_exposure
-from .images import save_figure, srgb_tonemap, write_png
+from .images import reference_exposure, save_figure, srgb_tonemap, write_png
 
 
 def show_signal(signal, out, *, grid=4):

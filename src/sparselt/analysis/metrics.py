@@ -41,7 +41,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..checks import check_positive_finite
-from ..images import luminance, srgb_tonemap
+from ..images import luminance, reference_exposure, srgb_tonemap  # noqa: F401  (reference_exposure re-exported)
 
 __all__ = [
     "display_image",
@@ -389,36 +389,6 @@ def relative_mean_squared_error(image, reference, *, epsilon=1e-2):
 
 
 # --------------------------------------------------------------------------- HDR convention
-
-
-def reference_exposure(reference):
-    """Exposure that maps the 99th percentile of luminance of ``reference`` to 0.9.
-
-    Parameters
-    ----------
-    reference : array_like
-        Linear HDR image, channels last (e.g. ``(height, width, 3)``).
-        Luminance is the mean over the last axis.
-
-    Returns
-    -------
-    float
-        ``0.9 / p99`` where ``p99`` is the 99th percentile of luminance; 1.0
-        when the image is empty or ``p99`` is not positive (a black image).
-
-    Notes
-    -----
-    Used for every tone-mapped picture ``sparselt show`` writes and, through
-    :func:`display_image`, for every SSIM on HDR images (see the module
-    docstring), so that what the metric compares is what the pictures show.
-
-    References
-    ----------
-    Thesis, section 5.2 "Image Quality Metric".
-    """
-    luminance = np.asarray(reference, dtype=np.float64).mean(axis=-1)
-    level = np.percentile(luminance, 99) if luminance.size else 0.0
-    return 0.9 / level if level > 0 else 1.0
 
 
 def display_image(image, reference):

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..images import save_figure, srgb_tonemap
+from ..images import reference_exposure, save_figure, srgb_tonemap
 from ..provenance import atomic_write_bytes
 
 # Thesis Tables 8.1 (Dragons) and 8.2 (San Miguel): SPP -> (total, sampling, CoSaMP, integration) seconds.
@@ -163,8 +163,6 @@ def _pyplot():
 
 def plot_image_grid(path, rows, reference, image_path):
     """The reference and every method at matched time, with SSIM, relMSE and luminance ratio."""
-    from ..analysis.metrics import reference_exposure
-
     if not rows:
         return
     pyplot = _pyplot()
@@ -252,8 +250,6 @@ def disagreement_crops(images, size, count=3):
 
 def plot_crop_grid(path, rows, reference, image_path):
     """Detail crops (rows) of the reference and every method at matched time (columns), where they differ most."""
-    from ..analysis.metrics import reference_exposure
-
     if not rows:
         return
     pyplot = _pyplot()

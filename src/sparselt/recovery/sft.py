@@ -79,6 +79,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse
 
+LARGEST_SAMPLE = 1e150  # squares and sums of squares of the samples must stay finite in float64
+
 from ..fourier import fft
 from ..fourier.sparse import SparseFourier
 from .result import RecoveryResult
@@ -247,6 +249,11 @@ class _SampleCache:
             bad = int(np.count_nonzero(~np.isfinite(values)))
             raise ValueError(f"the oracle returned {bad} NaN or infinite samples (first at index "
                              f"{int(indices[~np.isfinite(values)][0])}); samples must be finite")
+        largest = float(np.abs(values).max(initial=0.0))
+        if largest > LARGEST_SAMPLE:
+            raise ValueError(f"the oracle returned a sample of magnitude {largest:.3g}; energies (squares) of values "
+                             f"above {LARGEST_SAMPLE:.0e} overflow float64: divide the signal by a scale and multiply "
+                             "the result back")
         return values.astype(np.complex128, copy=False)
 
     def read(self, indices):
