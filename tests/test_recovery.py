@@ -202,10 +202,11 @@ def small_problem():
     return PartialFourier((20, 10), indices, dtype=np.float64), rng.standard_normal(50)
 
 
-@pytest.mark.parametrize("count, message", [(0, "0 < K"), (-3, "0 < K"), (50, "0 < K"), (2.5, "integer")])
-def test_bad_sparsity_is_refused(small_problem, count, message):
+@pytest.mark.parametrize("count, error, message", [(0, ValueError, "0 < K"), (-3, ValueError, "0 < K"),
+                                                   (50, ValueError, "0 < K"), (2.5, TypeError, "integer")])
+def test_bad_sparsity_is_refused(small_problem, count, error, message):
     operator, samples = small_problem
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(error, match=message):
         cosamp(operator, samples, count)
 
 

@@ -69,6 +69,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..checks import check_integer
 from ..fourier.integration import METHODS, integrate
 from ..fourier.sparse import SparseFourier
 from ..measurement import meminfo_bytes, reset_peak, status_bytes
@@ -416,10 +417,8 @@ def _validate(sizes, methods, seed, repeats, density, check_max_size):
         raise ValueError(f"unknown integration method(s) {unknown or methods!r}; choose from {', '.join(METHODS)}")
     if len(set(methods)) != len(methods):
         raise ValueError(f"methods {methods} repeat a method")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
-        raise ValueError(f"repeats must be a positive integer, got {repeats!r}")
+    seed = check_integer("seed", seed, 0)
+    repeats = check_integer("repeats", repeats, 1)
     if not 0 < float(density) <= 1:
         raise ValueError(f"density (the fraction K / N) must be in (0, 1], got {density!r}")
     return tuple(sorted(sizes)), methods, int(seed), int(repeats), float(density), int(check_max_size)

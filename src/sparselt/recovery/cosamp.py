@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from ..checks import check_integer
 from ..fourier.hermitian import keep_within
 from ..measurement import PhaseTimer
 from ..operators.base import SupportRestricted
@@ -46,8 +47,7 @@ def _validate(operator, samples, sparsity):
     if not np.all(np.isfinite(samples)):
         bad = int(np.count_nonzero(~np.isfinite(samples)))
         raise ValueError(f"y has {bad} NaN or infinite samples; drop or repair them before recovery")
-    if isinstance(sparsity, bool) or not isinstance(sparsity, (int, np.integer)):
-        raise ValueError(f"sparsity K must be an integer, got {sparsity!r}")
+    sparsity = check_integer("sparsity K", sparsity, -2**62)
     if not 0 < sparsity < operator.output_size:
         raise ValueError(f"sparsity K must satisfy 0 < K < number of samples ({operator.output_size}), got {sparsity}")
     samples = samples.astype(operator.sample_dtype, copy=False)

@@ -79,13 +79,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse
 
-LARGEST_SAMPLE = 1e150  # squares and sums of squares of the samples must stay finite in float64
-
+from ..checks import check_integer
 from ..fourier import fft
 from ..fourier.sparse import SparseFourier
 from .result import RecoveryResult
 from .sft_filters import Filter, choose_bins, divisors, make_filter, random_coprime
 
+LARGEST_SAMPLE = 1e150  # squares and sums of squares of the samples must stay finite in float64
 WINDOWS = ("chebyshev", "gaussian", "bspline")
 
 #: A bin is occupied when its energy exceeds this many times the noise level per bin.
@@ -169,20 +169,14 @@ class SparseFourierTransformResult(RecoveryResult):
 
 
 def _check_size(n):
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-        raise ValueError(f"signal size n must be a positive integer, got {n!r}")
-    n = int(n)
-    if n <= 0:
-        raise ValueError(f"signal size n must be a positive integer, got {n}")
+    n = check_integer("signal size n", n, 1)
     if n >= 2 ** 31:
         raise ValueError(f"signal size n must be below 2**31 (index products must fit in int64), got {n}")
     return n
 
 
 def _check_sparsity(sparsity, n):
-    if isinstance(sparsity, bool) or not isinstance(sparsity, (int, np.integer)):
-        raise ValueError(f"sparsity K must be an integer, got {sparsity!r}")
-    sparsity = int(sparsity)
+    sparsity = check_integer("sparsity K", sparsity, -2**62)
     if not 0 < sparsity <= n // 2:
         raise ValueError(f"sparsity K must satisfy 0 < K <= n/2 = {n // 2} for a signal of size {n}, got {sparsity}")
     return sparsity

@@ -61,6 +61,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..checks import check_integer
+
 KINDS = ("path", "path-indirect", "dof", "indirect")
 IMAGE_AXES = ("x", "y")
 LENS_AXES = ("lens_u", "lens_v")
@@ -158,8 +160,7 @@ def path_layout(kind, max_depth=3, *, thin_lens=False, hide_emitters=False):
     """
     if kind not in KINDS:
         raise ValueError(f"unknown signal kind {kind!r}; choose one of {', '.join(KINDS)}")
-    if isinstance(max_depth, bool) or not isinstance(max_depth, int):
-        raise ValueError(f"max_depth must be an integer, got {max_depth!r}")
+    check_integer("max_depth", max_depth, -2**62)
     minimum = _minimum_depth(kind)
     if max_depth < minimum:
         raise ValueError(f"max_depth={max_depth} is too small for kind {kind!r}; it needs at least {minimum}")
