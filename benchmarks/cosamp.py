@@ -20,20 +20,14 @@ import numpy as np
 
 from sparselt.fourier import fft
 from sparselt.measurement import reset_peak, status_bytes
-from sparselt.fourier.sparse import SparseFourier
+from sparselt.fourier.sparse import random_sparse_fourier
 from sparselt.operators import PartialFourier
 from sparselt.recovery.cosamp import cosamp
 
 
 def random_real_signal(shape, count, rng, decay=None):
-    """A real signal with ``count`` full-spectrum coefficients (conjugate pairs)."""
-    size = math.prod(shape)
-    pairs = count // 2
-    indices = np.unique(rng.integers(0, size, size=pairs + pairs // 10))[:pairs]
-    values = rng.standard_normal(indices.size) + 1j * rng.standard_normal(indices.size)
-    if decay is not None:
-        values *= (np.arange(1, indices.size + 1) ** -decay)[rng.permutation(indices.size)]
-    return SparseFourier(shape, indices, values).hermitian_closure().to_signal().astype(np.float32)
+    """A real signal with about ``count`` full-spectrum coefficients (conjugate pairs)."""
+    return random_sparse_fourier(shape, count, rng, real=True, decay=decay).to_signal().astype(np.float32)
 
 
 def fft_floor(shape, repeats=5):

@@ -5,7 +5,7 @@ import pytest
 
 from sparselt.fourier import fft
 from sparselt.fourier.integration import METHODS, integrate
-from sparselt.fourier.sparse import SparseFourier, partner_indices
+from sparselt.fourier.sparse import SparseFourier, partner_indices, random_sparse_fourier
 
 TOLERANCE = {np.float32: 2e-5, np.float64: 1e-12}
 
@@ -45,12 +45,8 @@ def test_fft_rejects_bad_arguments():
 
 
 def _random_sparse(shape, count, seed, real=False, channels=()):
-    rng = np.random.default_rng(seed)
-    size = int(np.prod(shape))
-    indices = rng.choice(size, size=min(count, size), replace=False)
-    values = rng.normal(size=(indices.size,) + channels) + 1j * rng.normal(size=(indices.size,) + channels)
-    representation = SparseFourier(shape, indices, values)
-    return representation.hermitian_closure() if real else representation
+    return random_sparse_fourier(shape, 2 * count if real else count, np.random.default_rng(seed), real=real,
+                                 channels=channels)
 
 
 @pytest.mark.parametrize("shape", [(32,), (9, 7), (6, 5, 4), (8, 6, 4, 3), (4, 3, 2, 3, 2)])
@@ -139,3 +135,17 @@ def test_integration_rejects_bad_axes(keep, message):
 def test_integration_rejects_unknown_method():
     with pytest.raises(ValueError, match="convolution"):
         integrate(_random_sparse((4, 4), 3, 0), (0,), method="trapezoid")
+
+
+def test_random_sparse_fourier_is_real_closed_and_reproducible():
+    first = random_sparse_fourier((8, 6, 4), 30, np.random.default_rng(3), real=True)
+    again = random_sparse_fourier((8, 6, 4), 30, np.random.default_rng(3), real=True)
+    np.testing.assert_array_equal(first.indices, again.indices)
+    assert first.real and set(first.partners()) == set(first.indices) and first.sparsity <= 30
+    assert not np.iscomplexobj(first.to_signal())
+    uniform = random_sparse_fourier((16,), 5, np.random.default_rng(0), values="uniform")
+    assert uniform.sparsity == 5 and np.all((uniform.values.real >= 0) & (uniform.values.real < 1))
+    decayed = random_sparse_fourier((64,), 10, np.random.default_rng(1), decay=2.0)
+    assert np.sort(np.abs(decayed.values))[0] < np.sort(np.abs(decayed.values))[-1] / 10
+    with pytest.raises(ValueError, match="'normal' or 'uniform'"):
+        random_sparse_fourier((8,), 2, np.random.default_rng(0), values="cauchy")

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sparselt.fourier.sparse import SparseFourier
+from sparselt.fourier.sparse import SparseFourier, random_sparse_fourier
 from sparselt.operators import LinearOperator, PartialFourier, dottest
 from sparselt.recovery.cosamp import cosamp, omp
 
@@ -104,14 +104,7 @@ def test_fully_sampled_operator_is_an_isometry_onto_the_signal(shape, real):
 
 
 def _sparse_signal(shape, count, rng, real=True):
-    size = math.prod(shape)
-    if real:
-        indices = rng.choice(size, count // 2, replace=False)
-        values = rng.standard_normal(indices.size) + 1j * rng.standard_normal(indices.size)
-        representation = SparseFourier(shape, indices, values).hermitian_closure()
-    else:
-        indices = rng.choice(size, count, replace=False)
-        representation = SparseFourier(shape, indices, rng.standard_normal(count) + 1j * rng.standard_normal(count))
+    representation = random_sparse_fourier(shape, count, rng, real=real)
     return representation.to_signal(), representation.sparsity
 
 

@@ -71,7 +71,7 @@ import numpy as np
 
 from ..checks import check_integer
 from ..fourier.integration import METHODS, integrate
-from ..fourier.sparse import SparseFourier
+from ..fourier.sparse import SparseFourier, random_sparse_fourier, sample_support  # noqa: F401
 from ..measurement import meminfo_bytes, reset_peak, status_bytes
 from ..provenance import atomic_write_bytes, check_output_folder, environment_record, write_json
 
@@ -182,43 +182,6 @@ def coefficient_count(signal_size, density=THESIS_DENSITY):
     return max(1, int(signal_size * density))
 
 
-def sample_support(size, count, rng):
-    """``randperm(size, count)`` in O(count) memory.
-
-    Draws integers with replacement and keeps first occurrences, in draw order,
-    until ``count`` are distinct: a uniformly random subset in random order,
-    without the O(size) memory of ``rng.choice(size, count, replace=False)``.
-
-    Parameters
-    ----------
-    size : int
-        Indices are drawn from ``[0, size)``.
-    count : int
-        How many distinct indices, ``0 <= count <= size``.
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    ndarray of int64, shape (count,)
-
-    Raises
-    ------
-    ValueError
-        ``count`` negative or larger than ``size``.
-    """
-    size, count = int(size), int(count)
-    if not 0 <= count <= size:
-        raise ValueError(f"count must be between 0 and size={size}, got {count}")
-    chosen = np.empty(0, dtype=np.int64)
-    while chosen.size < count:
-        needed = count - chosen.size
-        draw = rng.integers(0, size, size=needed + needed // 8 + 16, dtype=np.int64)
-        combined = np.concatenate([chosen, draw])
-        _, first = np.unique(combined, return_index=True)
-        chosen = combined[np.sort(first)]
-    return chosen[:count]
-
-
 def thesis_signal(size, *, density=THESIS_DENSITY, seed=0, dimensions=DIMENSIONS):
     """The random sparse signal of thesis section 4.3, as a :class:`SparseFourier`.
 
@@ -230,9 +193,7 @@ def thesis_signal(size, *, density=THESIS_DENSITY, seed=0, dimensions=DIMENSIONS
     shape = (int(size),) * int(dimensions)
     total = math.prod(shape)
     rng = np.random.default_rng([int(seed), int(size)])
-    support = sample_support(total, coefficient_count(total, density), rng)
-    values = rng.random(support.size).astype(np.complex128)
-    return SparseFourier(shape, support, values)
+    return random_sparse_fourier(shape, coefficient_count(total, density), rng, values="uniform")
 
 
 def _contributing(representation):

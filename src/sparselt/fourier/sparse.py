@@ -215,3 +215,66 @@ class SparseFourier:
     def __repr__(self):
         return (f"SparseFourier(shape={self.shape}, K={self.sparsity}, channels={self.channel_shape}, "
                 f"real={self.real})")
+
+
+def sample_support(size, count, rng):
+    """``count`` distinct indices of ``[0, size)``, uniformly at random, in O(count) memory.
+
+    Draws integers with replacement and keeps first occurrences, in draw order,
+    until ``count`` are distinct: a uniformly random subset in random order,
+    without the O(size) memory of ``rng.choice(size, count, replace=False)``.
+
+    Raises
+    ------
+    ValueError
+        ``count`` negative or larger than ``size``.
+    """
+    size, count = int(size), int(count)
+    if not 0 <= count <= size:
+        raise ValueError(f"count must be between 0 and size={size}, got {count}")
+    chosen = np.empty(0, dtype=np.int64)
+    while chosen.size < count:
+        needed = count - chosen.size
+        draw = rng.integers(0, size, size=needed + needed // 8 + 16, dtype=np.int64)
+        combined = np.concatenate([chosen, draw])
+        _, first = np.unique(combined, return_index=True)
+        chosen = combined[np.sort(first)]
+    return chosen[:count]
+
+
+def random_sparse_fourier(shape, count, rng, *, real=False, values="normal", decay=None, channels=()):
+    """A random K-sparse :class:`SparseFourier`: the one generator of tests, benchmarks and experiments.
+
+    Parameters
+    ----------
+    shape : tuple of int
+    count : int
+        Coefficients drawn. With ``real`` they are closed under the Hermitian
+        partner map (``count // 2`` drawn, each with its conjugate partner), so
+        the signal is real and has about ``count`` coefficients.
+    rng : numpy.random.Generator
+    values : {'normal', 'uniform'}
+        Complex standard normal values, or real values uniform in ``[0, 1)``
+        (thesis 4.3's random signal).
+    decay : float, optional
+        Multiply the values by ``rank ** -decay`` in a random order: a
+        compressible spectrum with power-law magnitudes.
+    channels : tuple of int, optional
+        Trailing value axes (e.g. ``(3,)`` for RGB).
+    """
+    shape = check_shape(shape)
+    size = int(np.prod(shape, dtype=np.int64))
+    drawn = min(int(count) // 2 if real else int(count), size)
+    support = sample_support(size, drawn, rng)
+    value_shape = (support.size,) + tuple(channels)
+    if values == "uniform":
+        coefficients = rng.random(value_shape).astype(np.complex128)
+    elif values == "normal":
+        coefficients = rng.standard_normal(value_shape) + 1j * rng.standard_normal(value_shape)
+    else:
+        raise ValueError(f"values must be 'normal' or 'uniform', got {values!r}")
+    if decay is not None:
+        scale = (np.arange(1, support.size + 1) ** -float(decay))[rng.permutation(support.size)]
+        coefficients = coefficients * scale.reshape((-1,) + (1,) * len(channels))
+    representation = SparseFourier(shape, support, coefficients)
+    return representation.hermitian_closure() if real else representation
