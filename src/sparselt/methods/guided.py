@@ -29,7 +29,8 @@ balance heuristic between map and uniform is the same estimator (see
 every pixel's spp and guides the non-image axes by the map's conditional,
 with a mixture weight chosen per image cell from ``(0.1, 0.25, 0.5, 1)`` by
 the cross-validated second moment of the guided estimator on the pilot's own
-samples (1 = plain path tracing where the map does not help); ``global``
+samples, a weight below 1 only where it helps by two standard errors (1 =
+plain path tracing where the map is not shown to help); ``global``
 draws cells over the image plane too, with the fixed ``defensive`` weight.
 """
 
@@ -51,6 +52,7 @@ DEFAULT_MAP_SPP = 16
 DEFAULT_DEFENSIVE = 0.1
 # Per-pixel mode: candidate defensive weights per image cell, chosen by cross-validation on the pilot.
 DEFENSIVE_CANDIDATES = (0.1, 0.25, 0.5, 1.0)
+SIGNIFICANCE_Z = 2.0  # one-sided: a weight below 1 must lower the second moment by 2 standard errors
 MODES = ("per-pixel", "global")
 BILATERAL_RADIUS = (2, 2, 1, 1)
 
@@ -116,18 +118,26 @@ class _GuidedMethod(Method):
                             path_samples=int(pilot.values.shape[0]) + width * height * budget.spp, details=details)
 
     def select_defensive(self, context, pilot, timer):
-        """The defensive weight of each image cell, chosen by cross-validated second moment (no reference).
+        """The defensive weight of each image cell, chosen on the pilot's own samples (no reference).
 
         The pilot's samples split in two folds; the map built from one fold is
-        scored on the other's samples (drawn uniformly, so
-        ``mean f^2 / q`` estimates the second moment of the guided estimator
-        ``f / q`` without bias), for each candidate weight in
-        :data:`DEFENSIVE_CANDIDATES`. Each cell keeps the weight of smallest
-        summed second moment; cells whose pilot saw nothing stay uniform.
+        scored on the other fold's samples. They were drawn uniformly, so for
+        a candidate weight ``a`` the per-sample difference
+        ``d = f^2 / q_a - f^2`` has mean (second moment of the guided
+        estimator ``f / q_a``) minus (that of path tracing). A cell takes the
+        candidate of :data:`DEFENSIVE_CANDIDATES` with the most negative mean
+        difference among those whose mean plus :data:`SIGNIFICANCE_Z` standard
+        errors is still below zero: guiding must be shown to help in that
+        cell, not merely look best among noisy estimates (the winner's curse
+        of picking the smallest of several noisy numbers). Otherwise the cell
+        keeps weight 1, plain path tracing.
         """
         image_cells = math.prod(context.grid_shape[:2])
         rest = math.prod(context.grid_shape[2:])
-        moments = np.zeros((image_cells, len(DEFENSIVE_CANDIDATES)))
+        candidates = [weight for weight in DEFENSIVE_CANDIDATES if weight < 1.0]
+        sums = np.zeros((image_cells, len(candidates)))
+        squares = np.zeros((image_cells, len(candidates)))
+        counts = np.zeros(image_cells)
         for fold in (0, 1):
             with timer("other"):
                 train, test = pilot.fold(fold), pilot.fold(1 - fold)
@@ -139,11 +149,20 @@ class _GuidedMethod(Method):
                 squared = level * level
                 image_cell, offset = test.cells // rest, test.cells % rest
                 guided = rest * conditional[image_cell, offset]
-                for index, weight in enumerate(DEFENSIVE_CANDIDATES):
-                    density = weight + (1.0 - weight) * guided
-                    moments[:, index] += np.bincount(image_cell, weights=squared / density, minlength=image_cells)
-        choice = np.asarray(DEFENSIVE_CANDIDATES)[np.argmin(moments, axis=1)]
-        choice[moments.max(axis=1) == 0] = 1.0
+                counts += np.bincount(image_cell, minlength=image_cells)
+                for index, weight in enumerate(candidates):
+                    difference = squared / (weight + (1.0 - weight) * guided) - squared
+                    sums[:, index] += np.bincount(image_cell, weights=difference, minlength=image_cells)
+                    squares[:, index] += np.bincount(image_cell, weights=difference * difference,
+                                                     minlength=image_cells)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = sums / counts[:, None]
+            variance = np.maximum(squares - counts[:, None] * mean * mean, 0.0) / (counts[:, None] - 1)
+            upper = mean + SIGNIFICANCE_Z * np.sqrt(variance / counts[:, None])
+        helps = (counts[:, None] >= 2) & (upper < 0)
+        score = np.where(helps, mean, np.inf)
+        best = np.argmin(score, axis=1)
+        choice = np.where(np.isfinite(score[np.arange(image_cells), best]), np.asarray(candidates)[best], 1.0)
         return choice
 
     def map_values(self, context, cells, means, timer):  # pragma: no cover - interface
