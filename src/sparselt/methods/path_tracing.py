@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from .base import Method, MethodResult, PhaseTimer
-from .pixel_samples import sample_mean_image
 from .registry import register
 
 
@@ -13,8 +12,8 @@ class PathTracing(Method):
 
     For kind ``indirect`` (one-bounce indirect light, which Mitsuba's ``path``
     cannot render alone) it is the same estimator as the signal kind's, with
-    every PSS dimension uniform: path tracing of that integrand, through the
-    sampler of :func:`~sparselt.methods.pixel_samples.draw_pixel_samples`.
+    every PSS dimension uniform: path tracing of that integrand, averaged per
+    pixel inside one Dr.Jit kernel (:meth:`MitsubaScene.render_estimator`).
     """
 
     name = "pt"
@@ -24,8 +23,9 @@ class PathTracing(Method):
     def run(self, context, budget):
         timer = PhaseTimer()
         if context.kind == "indirect":
-            samples, image = sample_mean_image(context, budget, timer)
-            details = {"integrator": "sparselt indirect estimator", "nonfinite_samples": samples.nonfinite}
+            with timer("sampling"):
+                image, nonfinite = context.scene.render_estimator(context.layout, budget.spp, budget.seed)
+            details = {"integrator": "sparselt indirect estimator, one kernel", "nonfinite_samples": nonfinite}
         else:
             image, seconds = context.scene.render_path(budget.spp, context.max_depth, budget.seed)
             timer.seconds["sampling"] = seconds

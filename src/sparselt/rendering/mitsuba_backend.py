@@ -440,6 +440,15 @@ class MitsubaScene:
         values = np.stack([np.asarray(channel, dtype=np.float32) for channel in (value.x, value.y, value.z)], axis=1)
         return values, np.asarray(cell, dtype=np.int64), lanes - int(np.count_nonzero(np.asarray(finite)))
 
+    def render_estimator(self, layout, spp, seed):
+        """Path tracing of the kind's own estimator (every PSS dimension uniform), ``spp`` per pixel, in one kernel.
+
+        The same kernel as :meth:`render_guided` without a map: the fair
+        path-tracing baseline for kinds Mitsuba's ``path`` cannot render alone
+        (``indirect``). Returns ``(image, nonfinite)``.
+        """
+        return self.render_guided(layout, None, None, None, spp, seed, mode="per-pixel")
+
     def render_guided(self, layout, map_shape, tables, densities, spp, seed, *, mode):
         """Render the film with primary samples drawn from a piecewise-constant importance map (thesis 6.2.1, 8.3).
 
@@ -496,13 +505,17 @@ class MitsubaScene:
             uniforms["y"] = (mi.Float(pixel // width) + uniforms["y"]) * dr.opaque(mi.Float, 1.0 / self.height)
             uniforms["x"] = dr.minimum(uniforms["x"], ONE_MINUS_EPSILON)
             uniforms["y"] = dr.minimum(uniforms["y"], ONE_MINUS_EPSILON)
-            cell_x = mi.UInt32(uniforms["x"] * dr.opaque(mi.Float, float(map_shape[0])))
-            cell_y = mi.UInt32(uniforms["y"] * dr.opaque(mi.Float, float(map_shape[1])))
-            prefix = dr.minimum(cell_x, map_shape[0] - 1) * map_shape[1] + dr.minimum(cell_y, map_shape[1] - 1)
+        if tables is None:  # no map: plain path tracing of the kind's estimator
+            density = mi.Float(1.0)
         else:
-            prefix = mi.UInt32(0)
-        prefix = _warp_axes(map_shape, tables, uniforms, layout.axes, prefix, first_axis)
-        density = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(densities, dtype=np.float32)), prefix)
+            if mode == "per-pixel":
+                cell_x = mi.UInt32(uniforms["x"] * dr.opaque(mi.Float, float(map_shape[0])))
+                cell_y = mi.UInt32(uniforms["y"] * dr.opaque(mi.Float, float(map_shape[1])))
+                prefix = dr.minimum(cell_x, map_shape[0] - 1) * map_shape[1] + dr.minimum(cell_y, map_shape[1] - 1)
+            else:
+                prefix = mi.UInt32(0)
+            prefix = _warp_axes(map_shape, tables, uniforms, layout.axes, prefix, first_axis)
+            density = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(densities, dtype=np.float32)), prefix)
 
         value = self._path_contribution(layout, uniforms) / density
         finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z) & (density > 0)
