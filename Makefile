@@ -18,7 +18,7 @@ test: $(STAMP)
 # CoSaMP reconstruction (thesis 8.1), the thesis's procedure beside ours, against a cached reference.
 demo: $(STAMP)
 	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,16,16 --spp 16 --seed 1 --out $(DEMO)/signal --overwrite
-	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures
+	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures --overwrite
 	$(BIN)/sparselt analyze $(DEMO)/signal --out $(DEMO)/analysis --overwrite
 	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis,bilateral,cosamp-bilateral,oidn --spp 16,40,81 --reference-spp 1024 --gamma 0.25 --out $(DEMO)/compare --overwrite
 	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, comparison in $(DEMO)/compare (table_8.md, quality_vs_time.png, image_grid.png)"
