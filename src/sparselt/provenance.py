@@ -8,6 +8,7 @@ name, so an interrupted run never leaves a half-written file under a final name.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import platform
@@ -74,6 +75,15 @@ def atomic_write_bytes(path, data):
         if os.path.exists(temporary):
             os.unlink(temporary)
         raise
+
+
+def atomic_save_npy(path, array):
+    """Write ``array`` as a ``.npy`` file atomically."""
+    import numpy as np
+
+    buffer = io.BytesIO()
+    np.save(buffer, array)
+    atomic_write_bytes(path, buffer.getvalue())
 
 
 def _umask():

@@ -27,7 +27,6 @@ finished cells, and may add methods, budgets or seeds.
 
 from __future__ import annotations
 
-import io
 import math
 import os
 import shutil
@@ -45,13 +44,13 @@ from ..analysis.metrics import (
     relative_mean_squared_error,
 )
 from ..checks import check_integer
-from ..images import write_png
+from ..images import luminance, write_png
 from ..methods import TIME_PHASES, Budget, ComparisonContext, get_method
-from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
+from ..provenance import atomic_save_npy, environment_record, read_json, write_json
 from ..rendering import mitsuba_backend
 from ..rendering.baseline import check_wavefront
 from ..rendering.layout import path_layout
-from ..rendering.scenes import get_scene
+from ..rendering.scenes import SceneSpec, get_scene
 from . import compare_report
 
 KINDS = ("dof", "indirect", "path")
@@ -209,8 +208,7 @@ def validate_config(config):
         raise ValueError(f"defensive must be in [0, 1], got {config.defensive!r}")
     if config.guiding_mode not in (None, "per-pixel", "global"):
         raise ValueError(f"guiding mode must be 'per-pixel' or 'global', got {config.guiding_mode!r}")
-    for spp in config.spps:
-        check_wavefront(resolution, spp)
+    check_wavefront(resolution, max(config.spps))
     if min(resolution) < 11:
         raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
     spec = get_scene(config.scene).with_lens(config.aperture, config.focus_distance)
@@ -272,6 +270,14 @@ def cell_name(method, spp, seed):
     return f"{method}_spp{spp}_seed{seed}"
 
 
+def _record_path(out, method, spp, seed):
+    return os.path.join(out, RECORDS, cell_name(method, spp, seed) + ".json")
+
+
+def _image_path(out, method, spp, seed):
+    return os.path.join(out, IMAGES, cell_name(method, spp, seed) + ".npy")
+
+
 SPECULAR_BSDFS = ("conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric", "plastic",
                   "roughplastic")
 
@@ -296,8 +302,6 @@ def caustic_mask(loaded, reference, *, spp, max_depth, seed=0, fraction=0.3):
     and the two scenes enter it; no method's image does. Built-in scenes
     only (a scene file's BSDFs are not rewritten).
     """
-    from ..rendering.scenes import SceneSpec
-
     spec = loaded.spec
     if spec.objects is None:
         raise ValueError("the caustic mask needs a built-in scene (a scene file's materials are not rewritten)")
@@ -308,8 +312,6 @@ def caustic_mask(loaded, reference, *, spp, max_depth, seed=0, fraction=0.3):
     without, _ = other.render_path(spp, max_depth, seed)
     albedo, _ = loaded.render_aovs(16, seed)
     albedo_plain, _ = other.render_aovs(16, seed)
-    from ..images import luminance
-
     same_surface = np.abs(luminance(albedo["albedo"]) - luminance(albedo_plain["albedo"])) < 0.02
     level, level_without = luminance(reference), luminance(without)
     return same_surface & (level - level_without > fraction * level) & (level > 0)
@@ -377,9 +379,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     context = ComparisonContext(scene=loaded, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
                                 resolution=config.output_resolution, max_depth=config.max_depth,
                                 options=config.method_options())
-    methods = [get_method(name) for name in config.methods]
-    for method in methods:
-        method.check(context)
+    methods = [get_method(name) for name in config.methods]  # their kinds were checked by validate_config
 
     record = previous or {}
     resolved = dict(config.record(), identity=config.identity())
@@ -413,7 +413,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     method_seconds = 0.0
     for method in methods:
         cells = [(spp, seed) for seed in config.seeds for spp in config.spps
-                 if not os.path.isfile(os.path.join(out, RECORDS, cell_name(method.name, spp, seed) + ".json"))]
+                 if not os.path.isfile(_record_path(out, method.name, spp, seed))]
         if not cells:
             continue
         warm_start = time.perf_counter()
@@ -426,7 +426,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
             method_seconds += time.perf_counter() - run_start
             row = _row(method.name, spp, seed, result, reference, mask)
             _write_image(out, cell_name(method.name, spp, seed), result.image, exposure)
-            write_json(os.path.join(out, RECORDS, cell_name(method.name, spp, seed) + ".json"),
+            write_json(_record_path(out, method.name, spp, seed),
                        {"row": row, "details": result.details, "seconds": result.seconds})
             if progress:
                 print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
@@ -438,12 +438,11 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     report_start = time.perf_counter()
     compare_report.write_results_csv(os.path.join(out, "results.csv"), rows, RESULT_COLUMNS + EXTRA_COLUMNS)
     compare_report.plot_quality_vs_time(os.path.join(out, "quality_vs_time.png"), rows, spec.name, RELMSE_EPSILON)
-    compare_report.plot_image_grid(os.path.join(out, "image_grid.png"), rows, reference,
-                                   lambda row: os.path.join(out, IMAGES, cell_name(row["method"], row["spp"],
-                                                                                   row["seed"]) + ".npy"))
-    compare_report.plot_crop_grid(os.path.join(out, "crop_grid.png"), rows, reference,
-                                  lambda row: os.path.join(out, IMAGES, cell_name(row["method"], row["spp"],
-                                                                                  row["seed"]) + ".npy"))
+    if rows:
+        matched = compare_report.matched_pictures(
+            rows, reference, lambda row: np.load(_image_path(out, row["method"], row["spp"], row["seed"])))
+        compare_report.plot_image_grid(os.path.join(out, "image_grid.png"), *matched)
+        compare_report.plot_crop_grid(os.path.join(out, "crop_grid.png"), *matched)
     compare_report.write_table_8(os.path.join(out, "table_8.md"), rows, spec.name, config)
     compare_report.write_equal_time_table(os.path.join(out, "equal_time.md"), rows, RELMSE_EPSILON)
     compare_report.write_table_6(os.path.join(out, "table_6.md"), rows, spec.name, config)
@@ -472,9 +471,7 @@ def _row(name, spp, seed, result, reference, mask=None):
 
 def _write_image(out, name, image, exposure):
     folder = os.path.join(out, IMAGES)
-    buffer = io.BytesIO()
-    np.save(buffer, np.asarray(image, dtype=np.float32))
-    atomic_write_bytes(os.path.join(folder, name + ".npy"), buffer.getvalue())
+    atomic_save_npy(os.path.join(folder, name + ".npy"), np.asarray(image, dtype=np.float32))
     temporary = os.path.join(folder, ".tmp-" + name + ".exr")
     mitsuba_backend.write_exr(temporary, image)
     os.replace(temporary, os.path.join(folder, name + ".exr"))

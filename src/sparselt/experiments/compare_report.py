@@ -161,22 +161,30 @@ def _pyplot():
     return pyplot
 
 
-def plot_image_grid(path, rows, reference, image_path):
-    """The reference and every method at matched time, with SSIM, relMSE and luminance ratio."""
-    if not rows:
-        return
-    pyplot = _pyplot()
+def matched_pictures(rows, reference, image_of):
+    """The rows at matched time, the target time, and display pictures: the reference first, then each row's image.
+
+    ``image_of(row)`` returns a row's linear image. Every picture uses the
+    reference's exposure.
+    """
     matched, target = matched_rows(rows)
     exposure = reference_exposure(reference)
+    pictures = [srgb_tonemap(reference, exposure)] + [srgb_tonemap(image_of(row), exposure) for row in matched]
+    return matched, target, pictures
+
+
+def plot_image_grid(path, matched, target, pictures):
+    """The reference and every method at matched time, with SSIM, relMSE and luminance ratio (from matched_pictures)."""
+    pyplot = _pyplot()
     panels = len(matched) + 1
     columns = min(5, panels)
     lines = -(-panels // columns)
     figure, axes = pyplot.subplots(lines, columns, figsize=(3.3 * columns, 3.5 * lines + 0.4), squeeze=False)
     axes = axes.ravel()
-    axes[0].imshow(srgb_tonemap(reference, exposure))
+    axes[0].imshow(pictures[0])
     axes[0].set_title("reference", fontsize=9)
-    for axis, row in zip(axes[1:], matched):
-        axis.imshow(srgb_tonemap(np.load(image_path(row)), exposure))
+    for axis, row, picture in zip(axes[1:], matched, pictures[1:]):
+        axis.imshow(picture)
         axis.set_title(f"{row['method']} {row['spp']} spp, {row['seconds_total']:.2f} s\n"
                        f"SSIM {row['ssim']:.3f} relMSE {row['relmse']:.3g} lum x{row['luminance_ratio']:.2f}",
                        fontsize=8)
@@ -248,21 +256,15 @@ def disagreement_crops(images, size, count=3):
     return chosen
 
 
-def plot_crop_grid(path, rows, reference, image_path):
+def plot_crop_grid(path, matched, target, pictures):
     """Detail crops (rows) of the reference and every method at matched time (columns), where they differ most."""
-    if not rows:
-        return
     pyplot = _pyplot()
-    matched, target = matched_rows(rows)
-    exposure = reference_exposure(reference)
-    displays = [srgb_tonemap(np.load(image_path(row)), exposure) for row in matched]
-    height, width = reference.shape[:2]
+    height, width = pictures[0].shape[:2]
     size = max(8, min(height, width) // 4)
-    crops = disagreement_crops(displays, size)
+    crops = disagreement_crops(pictures[1:], size)
     columns = len(matched) + 1
     figure, axes = pyplot.subplots(len(crops), columns, figsize=(2.2 * columns, 2.3 * len(crops) + 0.4),
                                    squeeze=False)
-    pictures = [srgb_tonemap(reference, exposure)] + displays
     titles = ["reference"] + [f"{row['method']}\n{row['spp']} spp, {row['seconds_total']:.2f} s" for row in matched]
     for line, (top, left) in enumerate(crops):
         for column, picture in enumerate(pictures):

@@ -158,14 +158,22 @@ class ImportanceMap:
             prefix = prefix * length + index
         return points, self._density_of_cells(prefix, first_axis)
 
-    def _density_of_cells(self, cells, first_axis):
-        if first_axis == 0:
-            return self.pdf.reshape(-1)[cells] * self.size
-        image_cells = math.prod(self.shape[:first_axis])
+    def cell_densities(self, image_axes=0):
+        """Density of each cell (flat, C order) on the unit hypercube.
+
+        ``image_axes = 0``: the density over all axes, ``pdf * N``. Otherwise
+        the density over the remaining axes given the cell of the first
+        ``image_axes`` axes: ``pdf / (mass of its image cell) * cells per image cell``.
+        """
+        if image_axes == 0:
+            return self.pdf.reshape(-1) * self.size
+        image_cells = math.prod(self.shape[:image_axes])
         rest = self.size // image_cells
         flat = self.pdf.reshape(image_cells, rest)
-        conditional = flat / flat.sum(axis=1, keepdims=True)
-        return conditional.reshape(-1)[cells] * rest
+        return (flat / flat.sum(axis=1, keepdims=True)).reshape(-1) * rest
+
+    def _density_of_cells(self, cells, first_axis):
+        return self.cell_densities(first_axis)[cells]
 
     def density(self, points):
         """Density on the unit hypercube of ``points`` (shape (n, D), in ``[0, 1)^D``)."""

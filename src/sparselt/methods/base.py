@@ -102,7 +102,8 @@ class PhaseTimer(measurement.PhaseTimer):
 class Method:
     """Base class of comparison methods.
 
-    Subclasses set :attr:`name`, :attr:`kinds` (signal kinds they support),
+    Subclasses set :attr:`name`, :attr:`kinds` (signal kinds they support; the
+    harness refuses others before anything runs),
     :attr:`description`, optionally :attr:`needs_resolution_multiple` (the
     output resolution must be a multiple of the grid's image axes), and
     implement :meth:`run`.
@@ -112,12 +113,6 @@ class Method:
     kinds = ()
     description = ""
     needs_resolution_multiple = False
-
-    def check(self, context):
-        """Raise ValueError when the method cannot run in ``context`` (before anything is computed)."""
-        if context.kind not in self.kinds:
-            raise ValueError(f"method {self.name!r} does not support kind {context.kind!r}; it supports "
-                             f"{', '.join(self.kinds)}")
 
     warm_up_spp = 1
 

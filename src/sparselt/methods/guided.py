@@ -70,12 +70,7 @@ def guiding_options(context):
 
 def render_with_map(context, importance, budget, mode):
     """The guided render of ``context`` with ``importance`` (an ImportanceMap over the grid)."""
-    if mode == "global":
-        densities = importance.pdf.reshape(-1) * importance.size
-    else:
-        image_cells = math.prod(importance.shape[:2])
-        flat = importance.pdf.reshape(image_cells, -1)
-        densities = (flat / flat.sum(axis=1, keepdims=True)).reshape(-1) * flat.shape[1]
+    densities = importance.cell_densities(0 if mode == "global" else 2)
     return context.scene.render_guided(context.layout, importance.shape, importance.level_tables(), densities,
                                        budget.spp, budget.seed, mode=mode)
 

@@ -6,7 +6,6 @@ Every later equal-time comparison renders its baseline with :func:`render_refere
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
 
@@ -14,7 +13,7 @@ import numpy as np
 
 from ..images import write_png
 from ..measurement import progress_bar
-from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
+from ..provenance import atomic_save_npy, environment_record, read_json, write_json
 from ..checks import check_integer
 from .scenes import get_scene
 
@@ -218,9 +217,7 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     if not np.all(np.isfinite(image)):
         raise ValueError(f"the reference render of {loaded.spec.name!r} has NaN or infinite pixels; check the scene")
     os.makedirs(folder, exist_ok=True)
-    buffer = io.BytesIO()
-    np.save(buffer, image)
-    atomic_write_bytes(image_path, buffer.getvalue())
+    atomic_save_npy(image_path, image)
     mitsuba_backend.write_exr(os.path.join(folder, "image.exr"), image)
     record = {"key": key, "seconds": seconds, "provenance": environment_record()}
     write_json(record_path, record)

@@ -329,15 +329,7 @@ class MitsubaScene:
         nonfinite : ndarray, shape (cell_count,), int64
             Number of samples in each cell whose value was NaN or infinite.
         """
-        lanes = int(cell_count) * int(spp)
-        index = dr.arange(mi.UInt32, lanes)
-        cell = dr.opaque(mi.UInt32, int(first_cell)) + index // spp
-        sample_index = index % spp
-        seed_value = dr.opaque(mi.UInt32, int(seed))
-
-        generator = mi.PCG32()
-        generator.seed(mi.sample_tea_64(cell, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value))
-
+        cell, generator, _ = _lanes(cell_count, spp, seed, first=first_cell)
         strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
         axis_of = {name: position for position, name in enumerate(layout.axes)}
         samples = {}
@@ -350,9 +342,7 @@ class MitsubaScene:
                 uniform = dr.minimum((mi.Float(coordinate) + uniform) * (1.0 / resolution), ONE_MINUS_EPSILON)
             samples[name] = uniform
 
-        value = self._path_contribution(layout, samples)
-        finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
-        value = dr.select(finite, value, 0.0)
+        value, finite = _zero_nonfinite(self._path_contribution(layout, samples))
         invalid = dr.select(finite, mi.UInt32(0), mi.UInt32(1))
         # One kernel for all outputs: reducing unevaluated channels one by one
         # would trace and run the whole path kernel once per channel.
@@ -361,8 +351,7 @@ class MitsubaScene:
         sums = [dr.block_sum(channel, spp) * scale for channel in (value.x, value.y, value.z)]
         bad = dr.block_sum(invalid, spp)
         dr.eval(sums, bad)
-        means = np.stack([np.asarray(channel, dtype=np.float32) for channel in sums], axis=1)
-        return means, np.asarray(bad, dtype=np.int64)
+        return _rgb_array(sums), np.asarray(bad, dtype=np.int64)
 
     def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None):
         """``spp`` path samples per film pixel, each at a uniformly random point of the pixel's PSS box.
@@ -405,17 +394,9 @@ class MitsubaScene:
         film_width, film_height = (self.width, self.height) if resolution is None else (int(v) for v in resolution)
         total = film_width * film_height
         pixel_count = total - int(first_pixel) if pixel_count is None else int(pixel_count)
-        lanes = pixel_count * int(spp)
-        samples_per_pixel = dr.opaque(mi.UInt32, int(spp))
-        index = dr.arange(mi.UInt32, lanes)
-        pixel = dr.opaque(mi.UInt32, int(first_pixel)) + index // samples_per_pixel
-        sample_index = index % samples_per_pixel
-        seed_value = dr.opaque(mi.UInt32, int(seed))
+        pixel, generator, lanes = _lanes(pixel_count, spp, seed, first=first_pixel)
         width = dr.opaque(mi.UInt32, film_width)
         pixel_x, pixel_y = pixel % width, pixel // width
-
-        generator = mi.PCG32()
-        generator.seed(mi.sample_tea_64(pixel, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value))
         strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
         axis_of = {name: position for position, name in enumerate(layout.axes)}
         samples = {}
@@ -423,9 +404,9 @@ class MitsubaScene:
         for name in layout.dimensions:
             uniform = generator.next_float32()
             if name == "x":
-                uniform = dr.minimum((mi.Float(pixel_x) + uniform) * dr.opaque(mi.Float, 1.0 / film_width), ONE_MINUS_EPSILON)
+                uniform = _in_pixel(pixel_x, uniform, film_width)
             elif name == "y":
-                uniform = dr.minimum((mi.Float(pixel_y) + uniform) * dr.opaque(mi.Float, 1.0 / film_height), ONE_MINUS_EPSILON)
+                uniform = _in_pixel(pixel_y, uniform, film_height)
             if name in axis_of:
                 position = axis_of[name]
                 resolution = dr.opaque(mi.Float, float(grid_shape[position]))
@@ -433,12 +414,9 @@ class MitsubaScene:
                 cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
             samples[name] = uniform
 
-        value = self._path_contribution(layout, samples)
-        finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
-        value = dr.select(finite, value, 0.0)
+        value, finite = _zero_nonfinite(self._path_contribution(layout, samples))
         dr.eval(value, cell, finite)
-        values = np.stack([np.asarray(channel, dtype=np.float32) for channel in (value.x, value.y, value.z)], axis=1)
-        return values, np.asarray(cell, dtype=np.int64), lanes - int(np.count_nonzero(np.asarray(finite)))
+        return _rgb_array((value.x, value.y, value.z)), np.asarray(cell, dtype=np.int64), _count_false(finite)
 
     def render_estimator(self, layout, spp, seed):
         """Path tracing of the kind's own estimator (every PSS dimension uniform), ``spp`` per pixel, in one kernel.
@@ -488,23 +466,13 @@ class MitsubaScene:
             Samples that were NaN or infinite (counted as 0).
         """
         pixels = self.width * self.height
-        lanes = pixels * int(spp)
-        index = dr.arange(mi.UInt32, lanes)
-        samples_per_pixel = dr.opaque(mi.UInt32, int(spp))
-        pixel = index // samples_per_pixel
-        sample_index = index % samples_per_pixel
-        seed_value = dr.opaque(mi.UInt32, int(seed))
-        generator = mi.PCG32()
-        generator.seed(mi.sample_tea_64(pixel, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value) + 0x9E37)
+        pixel, generator, _ = _lanes(pixels, spp, seed, stream=GUIDED_STREAM)
         width = dr.opaque(mi.UInt32, self.width)
-        axis_of = {name: position for position, name in enumerate(layout.axes)}
         first_axis = 0 if mode == "global" else 2
         uniforms = {name: generator.next_float32() for name in layout.dimensions}
         if mode == "per-pixel":
-            uniforms["x"] = (mi.Float(pixel % width) + uniforms["x"]) * dr.opaque(mi.Float, 1.0 / self.width)
-            uniforms["y"] = (mi.Float(pixel // width) + uniforms["y"]) * dr.opaque(mi.Float, 1.0 / self.height)
-            uniforms["x"] = dr.minimum(uniforms["x"], ONE_MINUS_EPSILON)
-            uniforms["y"] = dr.minimum(uniforms["y"], ONE_MINUS_EPSILON)
+            uniforms["x"] = _in_pixel(pixel % width, uniforms["x"], self.width)
+            uniforms["y"] = _in_pixel(pixel // width, uniforms["y"], self.height)
         if tables is None:  # no map: plain path tracing of the kind's estimator
             density = mi.Float(1.0)
         else:
@@ -517,9 +485,7 @@ class MitsubaScene:
             prefix = _warp_axes(map_shape, tables, uniforms, layout.axes, prefix, first_axis)
             density = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(densities, dtype=np.float32)), prefix)
 
-        value = self._path_contribution(layout, uniforms) / density
-        finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z) & (density > 0)
-        value = dr.select(finite, value, 0.0)
+        value, finite = _zero_nonfinite(self._path_contribution(layout, uniforms) / density, density > 0)
         scale = 1.0 / int(spp)
         if mode == "per-pixel":
             dr.eval(value, finite)
@@ -534,9 +500,7 @@ class MitsubaScene:
                 dr.scatter_reduce(dr.ReduceOp.Add, accumulator, channel * scale, target)
                 sums.append(accumulator)
         dr.eval(sums, finite)
-        image = np.stack([np.asarray(channel, dtype=np.float32) for channel in sums], axis=1)
-        nonfinite = lanes - int(np.count_nonzero(np.asarray(finite)))
-        return image.reshape(self.height, self.width, 3), nonfinite
+        return _rgb_array(sums).reshape(self.height, self.width, 3), _count_false(finite)
 
     # -- baseline -------------------------------------------------------------
 
@@ -588,6 +552,52 @@ class MitsubaScene:
         return buffers, seconds
 
 
+GUIDED_STREAM = 0x9E37  # PCG32 stream of guided renders, apart from the signal and pixel-sample streams
+
+
+def _lanes(count, spp, seed, *, first=0, stream=0):
+    """One lane per sample: ``spp`` samples of each of ``count`` items (cells or pixels) from ``first``.
+
+    Returns ``(item, generator, lanes)``. Each lane's PCG32 is seeded with a
+    TEA hash of (item, sample index, seed), so a sample's random numbers are a
+    pure function of those, whatever the batching; ``stream`` separates
+    estimators that must not share numbers. Sizes and seeds enter the kernel
+    as opaque values: one compiled kernel serves every call.
+    """
+    lanes = int(count) * int(spp)
+    index = dr.arange(mi.UInt32, lanes)
+    samples_per_item = dr.opaque(mi.UInt32, int(spp))
+    item = dr.opaque(mi.UInt32, int(first)) + index // samples_per_item
+    sample_index = index % samples_per_item
+    seed_value = dr.opaque(mi.UInt32, int(seed))
+    generator = mi.PCG32()
+    generator.seed(mi.sample_tea_64(item, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value) + stream)
+    return item, generator, lanes
+
+
+def _in_pixel(pixel, uniform, size):
+    """A coordinate in ``[0, 1)`` jittered by ``uniform`` inside pixel ``pixel`` of ``size`` pixels."""
+    return dr.minimum((mi.Float(pixel) + uniform) * dr.opaque(mi.Float, 1.0 / size), ONE_MINUS_EPSILON)
+
+
+def _zero_nonfinite(value, valid=None):
+    """``value`` with NaN or infinite lanes (and lanes not ``valid``) set to 0, and the mask of kept lanes."""
+    finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
+    if valid is not None:
+        finite &= valid
+    return dr.select(finite, value, 0.0), finite
+
+
+def _count_false(mask):
+    array = np.asarray(mask)
+    return int(array.size - np.count_nonzero(array))
+
+
+def _rgb_array(channels):
+    """Three evaluated Dr.Jit channels as a float32 ``(n, 3)`` array."""
+    return np.stack([np.asarray(channel, dtype=np.float32) for channel in channels], axis=1)
+
+
 def _warp_axes(map_shape, tables, uniforms, names, prefix, first_axis):
     """Warp ``uniforms[names[k]]`` for ``k >= first_axis`` through the map's conditional CDFs, in place.
 
@@ -637,9 +647,10 @@ def warp_points(map_shape, tables, uniforms, *, image_cells=None):
     names = [f"axis{k}" for k in range(len(map_shape))]
     values = {names[first_axis + k]: mi.Float(np.ascontiguousarray(uniforms[:, k], dtype=np.float32))
               for k in range(uniforms.shape[1])}
-    prefix = mi.UInt32(0) if image_cells is None else mi.UInt32(np.asarray(image_cells, dtype=np.uint32))
     if image_cells is None:
         prefix = dr.zeros(mi.UInt32, uniforms.shape[0])
+    else:
+        prefix = mi.UInt32(np.asarray(image_cells, dtype=np.uint32))
     cells = _warp_axes(map_shape, tables, values, names, prefix, first_axis)
     dr.eval(cells, *values.values())
     points = np.stack([np.asarray(values[names[first_axis + k]], dtype=np.float64) for k in range(uniforms.shape[1])], 1)
