@@ -31,6 +31,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/compare_overhead.py
 	$(BIN)/python benchmarks/filters.py
 	$(BIN)/python benchmarks/guided_throughput.py
+	$(BIN)/python benchmarks/distributed_sampling.py
 	$(BIN)/sparselt bench integrate --out out/bench-integrate --overwrite
 
 clean:

@@ -1,4 +1,4 @@
-"""Signal folders: atomic chunks, resume after a kill, provenance, and every bad input."""
+"""Signal stores: durable chunks, resume after a kill, provenance, and every bad input."""
 
 import json
 import os
@@ -36,7 +36,28 @@ def test_folder_round_trip_records_provenance(tmp_path, cornell):
         assert meta["provenance"]["versions"][package]
     assert "git" in meta["provenance"]
     assert signal.image().shape == (6, 8, 3)
-    assert not os.path.exists(tmp_path / "signal" / "progress.json")
+    assert not os.path.exists(tmp_path / "signal" / "chunks.jsonl")
+    assert not os.path.exists(tmp_path / "signal" / ".sparselt.lock")
+    assert len(meta["chunk_crc32"]) == meta["chunk_count"]
+
+
+def test_store_is_readable_by_xarray_and_dask_without_sparselt(tmp_path, cornell):
+    import dask.array
+    import xarray
+
+    signal = acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell, chunk_cells=300)
+    dataset = xarray.open_zarr(tmp_path / "s", consolidated=False)
+    assert dataset["data"].dims == signal.axes + ("channel",) and dataset.attrs["seed"] == 2
+    lazy = dask.array.from_zarr(str(tmp_path / "s"), component="data")
+    assert lazy.chunksize == tuple(signal.meta["chunk_shape"]) + (3,)
+    assert np.array_equal(lazy.compute(), np.asarray(signal.data))
+
+
+def test_same_seed_any_chunking_same_bytes(tmp_path, cornell):
+    stored = [np.asarray(acquire_signal(_config(), tmp_path / str(chunk), progress=False, scene_spec=cornell,
+                                        chunk_cells=chunk).data) for chunk in (97, 256, 300, 100000)]
+    for data in stored[1:]:
+        assert data.tobytes() == stored[0].tobytes()
 
 
 def test_image_is_the_mean_over_non_image_axes_transposed(tmp_path, cornell):
@@ -82,13 +103,13 @@ def test_resume_after_kill_gives_the_same_data(tmp_path):
     command = [sys.executable, "-m", "sparselt.cli", "sample", "--scene", "cornell-box", "--kind", "path",
                "--shape", shape, "--spp", "8", "--seed", "9", "--out", str(out), "--chunk-cells", "512", "--no-progress"]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    progress_file = out / "progress.json"
+    journal = out / "chunks.jsonl"
     deadline = time.time() + 120
     finished = 0
     while time.time() < deadline and process.poll() is None:
         try:
-            finished = len(json.loads(progress_file.read_text())["finished_chunks"])
-        except (OSError, ValueError, KeyError):
+            finished = journal.read_text().count("\n")
+        except OSError:
             finished = 0
         if finished >= 5:
             break
@@ -99,7 +120,7 @@ def test_resume_after_kill_gives_the_same_data(tmp_path):
     assert 5 <= finished < 288
     with pytest.raises(IncompleteSignalError, match="resume"):
         load_signal(out)
-    assert not (out / "data.npy").exists()
+    assert json.loads((out / "zarr.json").read_text())["attributes"]["status"] == "incomplete"
 
     resumed = subprocess.run(command, capture_output=True, text=True)
     assert resumed.returncode == 0, resumed.stderr
@@ -111,14 +132,12 @@ def test_resume_after_kill_gives_the_same_data(tmp_path):
 
 def test_resume_with_another_configuration_is_refused(tmp_path, cornell):
     out = tmp_path / "s"
-    os.makedirs(out)
-    acquire_signal(_config(), out, progress=False, scene_spec=cornell)
-    # Fake an interrupted state of this configuration, then ask for another one.
-    meta = json.loads((out / "meta.json").read_text())
-    meta["status"] = "incomplete"
-    (out / "meta.json").write_text(json.dumps(meta))
-    os.replace(out / "data.npy", out / "data.partial.npy")
-    (out / "progress.json").write_text(json.dumps({"chunk_cells": 100000, "chunk_count": 1, "finished_chunks": [], "nonfinite": {}}))
+    acquire_signal(_config(), out, progress=False, scene_spec=cornell, chunk_cells=64)
+    # Turn it into an interrupted run of this configuration, then ask for another one.
+    group = json.loads((out / "zarr.json").read_text())
+    group["attributes"]["status"] = "incomplete"
+    (out / "zarr.json").write_text(json.dumps(group))
+    (out / "chunks.jsonl").write_text("")
     with pytest.raises(ValueError, match="different configuration"):
         acquire_signal(_config(seed=3), out, progress=False, scene_spec=cornell)
     # The same configuration resumes.

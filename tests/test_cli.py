@@ -38,7 +38,7 @@ def test_sample_then_show(tmp_path, capsys):
     signal = tmp_path / "signal"
     assert main(["sample", "--scene", "cornell-box", "--kind", "dof", "--shape", "16,12,4,4", "--spp", "4",
                  "--aperture", "0.1", "--focus-distance", "3.5", "--out", str(signal), "--no-progress"]) == 0
-    meta = json.loads((signal / "meta.json").read_text())
+    meta = json.loads((signal / "zarr.json").read_text())["attributes"]
     assert meta["axes"] == ["x", "y", "lens_u", "lens_v"] and meta["camera"]["aperture_radius"] == 0.1
     pictures = tmp_path / "pictures"
     assert main(["show", str(signal), "--out", str(pictures)]) == 0
@@ -92,7 +92,8 @@ def test_existing_output_needs_overwrite(tmp_path):
 
 
 def test_show_of_an_incomplete_signal_says_how_to_resume(tmp_path):
-    (tmp_path / "meta.json").write_text(json.dumps({"status": "incomplete"}))
+    (tmp_path / "zarr.json").write_text(json.dumps({"zarr_format": 3, "node_type": "group",
+                                                    "attributes": {"format": "sparselt-signal", "status": "incomplete"}}))
     result = run("show", str(tmp_path), "--out", str(tmp_path / "pictures"))
     assert result.returncode != 0 and "resume" in result.stderr
 

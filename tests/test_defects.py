@@ -140,11 +140,11 @@ def test_empty_or_corrupt_data_file_is_a_clear_error(tmp_path):
     signal = tmp_path / "signal"
     assert main(["sample", "--scene", "cornell-box", "--kind", "dof", "--aperture", "0.1", "--shape", "12,12,2,2",
                  "--spp", "2", "--out", str(signal), "--no-progress"]) == 0
-    (signal / "data.npy").write_bytes(b"")
-    with pytest.raises(ValueError, match="empty or corrupt"):
+    (signal / "data" / "zarr.json").write_bytes(b"")
+    with pytest.raises(ValueError, match="cannot be opened"):
         load_signal(signal)
-    (signal / "meta.json").write_text("{not json")
-    with pytest.raises(ValueError, match="meta.json' is not valid JSON"):
+    (signal / "zarr.json").write_text("{not json")
+    with pytest.raises(ValueError, match="zarr.json' is not valid JSON"):
         load_signal(signal)
 
 

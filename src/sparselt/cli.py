@@ -83,6 +83,11 @@ def build_parser():
                         help="NaN/Inf samples: stop with an error (default) or count them and use 0")
     sample.add_argument("--chunk-cells", type=int, default=None, help="cells per chunk (default: about 4M samples)")
     sample.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    cluster = sample.add_mutually_exclusive_group()
+    cluster.add_argument("--workers", type=int, default=None,
+                         help="sample on a local Dask cluster of this many worker processes")
+    cluster.add_argument("--scheduler", default=None,
+                         help="sample on an existing Dask cluster (scheduler address); its workers must reach --out")
     _add_camera_options(sample)
     sample.set_defaults(handler=_sample)
 
@@ -201,7 +206,8 @@ def _sample(arguments):
         nonfinite=arguments.nonfinite,
     )
     signal = acquire_signal(config, arguments.out, overwrite=arguments.overwrite,
-                            progress=not arguments.no_progress, chunk_cells=arguments.chunk_cells)
+                            progress=not arguments.no_progress, chunk_cells=arguments.chunk_cells,
+                            workers=arguments.workers, scheduler=arguments.scheduler)
     print(f"wrote {arguments.out}: {signal.kind} signal, axes {', '.join(signal.axes)}, shape {signal.shape}, "
           f"{signal.meta.get('sampling_seconds', 0):.1f} s of sampling")
     return 0

@@ -18,7 +18,8 @@ import tempfile
 from datetime import datetime, timezone
 from importlib import metadata
 
-PACKAGES = ("sparselt", "numpy", "scipy", "mitsuba", "drjit", "ducc0", "matplotlib", "tqdm", "numba", "pyoidn")
+PACKAGES = ("sparselt", "numpy", "scipy", "mitsuba", "drjit", "ducc0", "matplotlib", "tqdm", "numba", "pyoidn", "zarr",
+            "dask", "distributed")
 
 
 def package_versions():

@@ -1,25 +1,15 @@
-"""Gridded primary-sample-space signals and their on-disk format.
+"""Gridded primary-sample-space signals and loading them from their store.
 
 A signal is the path contribution ``f(S(u))`` averaged over the cells of a
 regular grid in primary sample space (thesis 3.2.2): an array of shape
 ``shape + (3,)`` (RGB, float32) with named axes.
 
-On disk a signal is a folder::
-
-    meta.json          configuration, layout, provenance; "status" says whether
-                       the data is complete
-    data.npy           the data, present only once every chunk is written
-    data.partial.npy   the data while it is being acquired (never loads)
-    progress.json      chunks finished so far (only while incomplete)
-
-The data file is a plain ``.npy`` array that :func:`load_signal` memory-maps,
-so a signal larger than RAM (the thesis path signal is 7.9 GB) is read lazily
-and random subsets of cells cost only what they touch. Chunks are committed
-atomically: a chunk's cells are flushed to ``data.partial.npy`` before the
-chunk is recorded in ``progress.json`` (itself replaced atomically), and only a
-finished acquisition renames the data to ``data.npy``. A killed run therefore
-never leaves a file that loads as complete, and resuming recomputes only the
-chunks that were not recorded.
+On disk a signal is a Zarr v3 store (:mod:`sparselt.storage.zarr_store`):
+:func:`load_signal` returns a :class:`Signal` whose ``data`` is the lazily
+chunked Zarr array, so a signal larger than RAM (the thesis path signal is
+7.9 GB) is read chunk by chunk and slices cost only the chunks they touch;
+``np.asarray(signal.data)`` reads it whole. Only a store whose every chunk is
+written and recorded says ``"status": "complete"``.
 """
 
 from __future__ import annotations
@@ -29,13 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .provenance import read_json
 
-META_FILE = "meta.json"
-DATA_FILE = "data.npy"
-PARTIAL_DATA_FILE = "data.partial.npy"
-PROGRESS_FILE = "progress.json"
-FORMAT_VERSION = 1
+from .storage.zarr_store import ChunkGrid, ChunkJournal, missing_chunks, open_data, read_attributes, store_status
 
 
 class IncompleteSignalError(ValueError):
@@ -98,24 +83,20 @@ class Signal:
 
 
 def signal_status(path):
-    """'complete', 'incomplete' or ``None`` (not a signal folder)."""
-    meta_path = os.path.join(path, META_FILE)
-    if not os.path.isfile(meta_path):
-        return None
-    if os.path.isfile(os.path.join(path, DATA_FILE)) and read_json(meta_path).get("status") == "complete":
-        return "complete"
-    return "incomplete"
+    """'complete', 'incomplete', 'legacy' (the old ``.npy`` folder format) or ``None`` (not a signal)."""
+    return store_status(path)
 
 
 def load_signal(path, *, mmap=True):
-    """Load a signal folder written by ``sparselt sample``.
+    """Load a signal store written by ``sparselt sample``.
 
     Parameters
     ----------
     path : str
-        The signal folder.
+        The signal folder (a Zarr v3 store).
     mmap : bool, optional
-        Memory-map the data read-only (default); ``False`` reads it into RAM.
+        Keep the data on disk, read lazily chunk by chunk (default); ``False``
+        reads it into RAM.
 
     Returns
     -------
@@ -128,28 +109,38 @@ def load_signal(path, *, mmap=True):
     IncompleteSignalError
         The acquisition has not finished; rerun the same ``sparselt sample``
         command to resume it.
+    ValueError
+        The folder is in the old ``.npy`` format, or its data are damaged
+        (a chunk file missing or not matching the metadata).
     """
     path = os.fspath(path)
-    meta_path = os.path.join(path, META_FILE)
-    if not os.path.isfile(meta_path):
-        raise FileNotFoundError(f"{path!r} is not a sparselt signal folder (no {META_FILE})")
-    meta = read_json(meta_path)
-    data_path = os.path.join(path, DATA_FILE)
-    if meta.get("status") != "complete" or not os.path.isfile(data_path):
-        done = "unknown"
-        progress_path = os.path.join(path, PROGRESS_FILE)
-        if os.path.isfile(progress_path):
-            progress = read_json(progress_path)
-            done = f"{len(progress.get('finished_chunks', []))}/{progress.get('chunk_count')} chunks"
+    status = store_status(path)
+    if status is None:
+        raise FileNotFoundError(f"{path!r} is not a sparselt signal folder (no Zarr group 'zarr.json' of a signal)")
+    if status == "legacy":
+        raise ValueError(f"{path!r} holds a signal in the old .npy folder format, which this version no longer reads; "
+                         "resample it with 'sparselt sample ... --overwrite'")
+    meta = read_attributes(path)
+    if status != "complete":
+        finished = len(ChunkJournal(path).read())
+        total = meta.get("chunk_count", "?")
         raise IncompleteSignalError(
-            f"signal {path!r} is incomplete ({done} finished); rerun the same 'sparselt sample' command to resume it"
+            f"signal {path!r} is incomplete ({finished}/{total} chunks finished); "
+            "rerun the same 'sparselt sample' command to resume it"
         )
-    try:
-        data = np.load(data_path, mmap_mode="r" if mmap else None, allow_pickle=False)
-    except (ValueError, EOFError, OSError) as error:
-        raise ValueError(f"the data file {data_path!r} is empty or corrupt ({error}); "
-                         "resample the signal with 'sparselt sample --overwrite'") from None
     expected = tuple(meta["shape"]) + (3,)
-    if data.shape != expected:
-        raise ValueError(f"signal data in {path!r} has shape {data.shape}, metadata says {expected}")
+    try:
+        data = open_data(path)
+    except Exception as error:  # noqa: BLE001  (zarr raises several types for a damaged array)
+        raise ValueError(f"the data of signal {path!r} cannot be opened ({error}); "
+                         "resample the signal with 'sparselt sample --overwrite'") from None
+    if tuple(data.shape) != expected:
+        raise ValueError(f"signal data in {path!r} has shape {tuple(data.shape)}, metadata says {expected}")
+    grid = ChunkGrid(tuple(meta["shape"]), tuple(meta["chunk_shape"]))
+    missing = missing_chunks(path, grid)
+    if missing:
+        raise ValueError(f"signal {path!r} is damaged: {len(missing)} of {grid.count} chunk files are missing "
+                         f"(first: chunk {missing[0]}); resample it with 'sparselt sample --overwrite'")
+    if not mmap:
+        data = np.asarray(data[...], dtype=np.float32)
     return Signal(data=data, kind=meta["kind"], axes=tuple(meta["axes"]), meta=meta)

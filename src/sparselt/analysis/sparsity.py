@@ -867,7 +867,9 @@ def signal_gini(signal, *, domain, energy=False, memory_limit_bytes=DEFAULT_MEMO
        Transactions on Information Theory 55(10), 4723-4741, 2009.
     """
     data = getattr(signal, "data", None)
-    if not isinstance(data, np.ndarray) or data.ndim < 2 or data.shape[-1] != 3:
+    # An ndarray, a memory map or a lazily chunked store array (``load_signal``'s Zarr data): sliced piece by piece.
+    if not all(hasattr(data, name) for name in ("shape", "dtype", "ndim", "__getitem__")) or data.ndim < 2 \
+            or data.shape[-1] != 3:
         raise TypeError(f"signal must be a sparselt Signal with data of shape grid_shape + (3,), got {signal!r:.80}")
     if domain not in DOMAINS:
         raise ValueError(f"domain must be one of {DOMAINS}, got {domain!r}")

@@ -4,7 +4,22 @@
 signal kind as the mean of ``spp`` jittered samples of ``f(S(u))`` (thesis
 3.2.2 and 5.3: "each point in these signals was estimated as the average of 64
 randomly jittered samples"), in chunks that fit in memory, with a progress bar,
-writing the signal folder described in :mod:`sparselt.signal`.
+writing the signal store described in :mod:`sparselt.storage.zarr_store`.
+
+Every chunk is one task, :func:`sample_chunk`: it builds (or reuses) the scene
+in the process that runs it, samples the chunk's cells, writes them into the
+store and returns a small record (checksum, NaN count). The in-process run
+and a Dask run (``workers=`` / ``scheduler=``) execute the same task, so the
+stored bytes are the same, and so is the signal for any chunking: a sample's
+random numbers depend only on (seed, cell, sample index).
+
+Integrity (issue 9): one writer per store (:class:`~sparselt.storage.StoreLock`);
+a chunk is recorded in the journal only after it is durably written, and
+re-checked against its CRC-32 on resume; the scene's identity (content of the
+XML file and everything it references, or the description and generator code
+of a built-in scene) is in the metadata and a resume with another identity is
+refused; every limit is checked and the scene loaded before anything is
+written or removed.
 """
 
 from __future__ import annotations
@@ -18,26 +33,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_integer  # noqa: F401  (re-exported: callers import it from here)
+from ..checks import check_integer
 from ..measurement import available_memory, progress_bar
-from ..provenance import environment_record, format_bytes, read_json, write_json
-from ..signal import (
-    DATA_FILE,
-    FORMAT_VERSION,
-    META_FILE,
-    PARTIAL_DATA_FILE,
-    PROGRESS_FILE,
-    Signal,
-    load_signal,
-    signal_status,
-)
+from ..provenance import environment_record, format_bytes
+from ..signal import Signal, load_signal
+from ..storage import zarr_store
+from ..storage.lock import LOCK_FILE, StoreLock, check_unlocked
+from ..storage.zarr_store import FORMAT, FORMAT_VERSION, ChunkGrid, ChunkJournal
+from .identity import scene_identity
 from .layout import KINDS, path_layout
-from .scenes import SceneSpec, get_scene
+from .scenes import SCENES, SceneSpec, get_scene
 
 DEFAULT_SPP = 64
 DEFAULT_MAX_DEPTH = 3
 LANES_PER_CHUNK = 1 << 22
 MAXIMUM_SPP = 1 << 16
+LANES_PER_LAUNCH = 1 << 32  # Dr.Jit's 32-bit lane indices: cells x spp of one launch stay below
+MAXIMUM_AXES = 63  # NumPy arrays have at most 64 axes, one of them RGB
 NONFINITE_POLICIES = ("error", "zero")
 
 THESIS_PRESETS = {
@@ -56,7 +68,7 @@ class NonFiniteSampleError(RuntimeError):
 
 @dataclass(frozen=True)
 class AcquisitionConfig:
-    """Everything that determines a signal; recorded in its ``meta.json``.
+    """Everything that determines a signal; recorded in its store's metadata.
 
     Attributes
     ----------
@@ -98,8 +110,8 @@ class AcquisitionConfig:
         return record
 
 
-def validate_config(config):
-    """Check a configuration without loading the renderer.
+def validate_config(config, chunk_cells=None):
+    """Check a configuration (and a requested chunk size) without loading the renderer.
 
     Raises
     ------
@@ -120,9 +132,21 @@ def validate_config(config):
     cells = math.prod(config.shape)
     if cells >= 2**32:
         raise ValueError(f"shape {tuple(config.shape)} has {cells} cells; at most 2**32 - 1 are supported")
+    if len(config.shape) > MAXIMUM_AXES:
+        raise ValueError(f"shape has {len(config.shape)} axes; at most {MAXIMUM_AXES} are supported "
+                         f"(a path signal of max depth {config.max_depth} needs more: use max depth <= 16)")
+    if chunk_cells is not None:
+        check_integer("chunk_cells", chunk_cells, 1)
+        if chunk_cells * config.spp >= LANES_PER_LAUNCH:
+            raise ValueError(f"chunk_cells x spp = {chunk_cells} x {config.spp} = {chunk_cells * config.spp} samples in "
+                             f"one launch; at most 2**32 - 1 are supported: use --chunk-cells <= "
+                             f"{(LANES_PER_LAUNCH - 1) // config.spp}")
 
 
 def _check_shape_matches(config, layout):
+    if len(layout.axes) > MAXIMUM_AXES:
+        raise ValueError(f"kind {config.kind!r} at max depth {config.max_depth} has {len(layout.axes)} axes; at most "
+                         f"{MAXIMUM_AXES} are supported (use max depth <= 16)")
     if len(config.shape) != len(layout.axes):
         raise ValueError(
             f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max depth "
@@ -135,27 +159,133 @@ def signal_bytes(shape):
     return math.prod(shape) * 3 * 4
 
 
-def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_cells=None, scene_spec=None):
-    """Sample a signal, in memory or into a resumable signal folder.
+@dataclass(frozen=True)
+class ChunkJob:
+    """One chunk to sample: everything a worker needs, as plain Python (picklable).
+
+    ``scene`` is a built-in scene name (the worker builds it from its own
+    registry, meshes included) or a :class:`SceneSpec`; ``store`` is the
+    signal store, or ``None`` to return the values instead of writing them.
+    """
+
+    config: AcquisitionConfig
+    scene: object
+    grid: ChunkGrid
+    index: int
+    store: str | None = None
+    concurrency: dict | None = None
+
+
+_WORKER_SCENES = {}
+
+
+def _scene_key(job):
+    return (repr(job.scene), job.config.aperture, job.config.focus_distance, tuple(job.config.shape[:2]),
+            job.config.variant, job.config.kind, job.config.max_depth)
+
+
+def _worker_scene(job):
+    """The scene and layout of a job, built once per process."""
+    from . import mitsuba_backend
+
+    key = _scene_key(job)
+    if key not in _WORKER_SCENES:
+        config = job.config
+        spec = get_scene(job.scene) if isinstance(job.scene, str) else job.scene
+        spec = spec.with_lens(config.aperture, config.focus_distance)
+        scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
+        layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens,
+                             hide_emitters=spec.hide_emitters)
+        _WORKER_SCENES.clear()  # one scene per worker process at a time
+        _WORKER_SCENES[key] = (scene, layout)
+    return _WORKER_SCENES[key]
+
+
+def sample_chunk(job):
+    """Sample one chunk (the task of every acquisition, in-process or on a Dask worker).
+
+    Returns
+    -------
+    dict
+        ``{"chunk", "crc32", "nonfinite"}``, plus ``"values"`` (shape
+        ``(cells, 3)``) when ``job.store`` is ``None``.
+
+    Raises
+    ------
+    NonFiniteSampleError
+        NaN/infinite samples, or cell means overflowing float32, with
+        ``nonfinite='error'``.
+    DiskFullError
+        The store's device is full.
+    """
+    from ..distributed import worker_thread_share
+    from . import mitsuba_backend
+
+    threads = worker_thread_share(job.concurrency)
+    if threads is not None:
+        mitsuba_backend.set_thread_count(threads)
+    config = job.config
+    scene, layout = _worker_scene(job)
+    first, count, _ = job.grid.chunk(job.index)
+    means, nonfinite = scene.sample_cells(layout, config.shape, first, count, config.spp, config.seed)
+    overflow = ~np.all(np.isfinite(means), axis=1)  # finite samples whose float32 sum overflowed
+    if overflow.any():
+        cell = first + int(np.flatnonzero(overflow)[0])
+        if config.nonfinite == "error":
+            raise NonFiniteSampleError(
+                f"{int(overflow.sum())} cell means overflow float32 in cells {first}..{first + count - 1} "
+                f"(first at cell {cell}): the scene's radiance is too large to store (float32 holds up to "
+                f"3.4e38); scale the emitters down, or rerun with --nonfinite zero to store 0 in those cells. "
+                "Finished chunks are kept."
+            )
+        means[overflow] = 0.0
+        nonfinite = nonfinite + overflow * config.spp
+    bad = int(nonfinite.sum())
+    if bad and config.nonfinite == "error":
+        cell = first + int(np.flatnonzero(nonfinite)[0])
+        raise NonFiniteSampleError(
+            f"the renderer returned {bad} NaN or infinite samples in cells {first}..{first + count - 1} "
+            f"(first at cell {cell}, grid index {tuple(int(i) for i in np.unravel_index(cell, config.shape))}); "
+            "finished chunks are kept. Rerun with --nonfinite zero to count them and use 0 in their place."
+        )
+    record = {"chunk": job.index, "nonfinite": bad}
+    if job.store is None:
+        record.update(crc32=zarr_store.checksum(means), values=means)
+    else:
+        record["crc32"] = zarr_store.write_chunk(job.store, job.grid, job.index, means)
+    return record
+
+
+def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_cells=None, scene_spec=None,
+                   workers=None, scheduler=None):
+    """Sample a signal, in memory or into a resumable signal store.
 
     Parameters
     ----------
     config : AcquisitionConfig
         What to sample.
     path : str, optional
-        Signal folder. Without it the signal is kept in memory, which is
-        refused when it would take more than half of the available RAM.
+        Signal store (a folder). Without it the signal is kept in memory, which
+        is refused when it would take more than half of the available RAM.
     overwrite : bool, optional
         Replace an existing complete signal, or an incomplete one of a
-        different configuration. An incomplete signal of the same
-        configuration is always resumed.
+        different configuration or scene. The old signal is removed only
+        after the new configuration is validated and the scene has loaded.
+        An incomplete signal of the same configuration and scene is always
+        resumed.
     progress : bool, optional
         Show a progress bar (samples, rate, ETA) on standard error.
     chunk_cells : int, optional
-        Cells per chunk (default: about 4M samples per chunk). The data do not
-        depend on it; a resumed run keeps the chunking it started with.
+        At most this many cells per chunk (default: about 4M samples per
+        chunk). The data do not depend on it; a resumed run keeps the chunking
+        it started with.
     scene_spec : SceneSpec, optional
         Use this scene description instead of resolving ``config.scene``.
+    workers : int, optional
+        Sample on a local Dask cluster of this many worker processes.
+    scheduler : str, optional
+        Sample on the existing Dask cluster of this scheduler; its workers
+        must reach ``path`` (a shared file system).
 
     Returns
     -------
@@ -165,25 +295,38 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     ------
     ValueError
         Invalid configuration, shape not matching the kind, output folder
-        in the way, or not enough memory or disk.
+        in the way, scene changed since the signal was started, or not
+        enough memory or disk.
+    StoreLockedError
+        Another run is writing this store (the message names it).
     NonFiniteSampleError
         NaN or infinite samples with ``nonfinite='error'``; finished chunks
         are kept and the run can be resumed.
+    DiskFullError
+        The disk filled during the run; finished chunks are kept and the run
+        resumes once space is freed.
     """
     from . import mitsuba_backend
 
-    validate_config(config)
+    validate_config(config, chunk_cells)
+    distributed = workers is not None or scheduler is not None
+    if workers is not None and scheduler is not None:
+        raise ValueError("give either workers (a local Dask cluster) or scheduler (an existing one), not both")
+    if workers is not None:
+        check_integer("workers", workers, 1, 4096)
+    if distributed and path is None:
+        raise ValueError("a distributed acquisition writes into a store: give an output path")
     spec = scene_spec if scene_spec is not None else get_scene(config.scene)
     if not isinstance(spec, SceneSpec):
         raise TypeError(f"scene_spec must be a SceneSpec, got {type(spec).__name__}")
+    source = config.scene if scene_spec is None and config.scene in SCENES else spec
     spec = spec.with_lens(config.aperture, config.focus_distance)
-    if chunk_cells is not None:
-        check_integer("chunk_cells", chunk_cells, 1)
     # Cheap checks first; the layout of a scene file needs its camera, hence the renderer (checked below).
     if spec.camera is not None:
         layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens,
                              hide_emitters=spec.hide_emitters)
         _check_shape_matches(config, layout)
+    grid = ChunkGrid.for_cells(config.shape, chunk_cells or max(1, LANES_PER_CHUNK // config.spp))
     nbytes = signal_bytes(config.shape)
     if path is None:
         available = available_memory()
@@ -192,109 +335,209 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
                 f"a signal of shape {tuple(config.shape)} takes {format_bytes(nbytes)}, more than half of the "
                 f"{format_bytes(available)} of available memory; give an output path to store it on disk"
             )
+        identity = None
     else:
-        path = os.fspath(path)
-        resumable = _prepare_folder(path, config, overwrite=overwrite)
-        if resumable is None:
-            free = shutil.disk_usage(os.path.dirname(os.path.abspath(path)) or ".").free
-            if nbytes > free:
-                raise ValueError(f"the signal takes {format_bytes(nbytes)} but only {format_bytes(free)} of disk is free "
-                                 f"at {path!r}")
+        path = os.path.abspath(os.fspath(path))
+        if "://" in path:
+            raise ValueError(f"output {path!r}: only file-system paths are supported (a shared one for a cluster)")
+        identity = scene_identity(spec)
+        check_unlocked(path)
+        plan = _inspect_store(path, config, identity, overwrite=overwrite)
+        _check_disk_space(path, grid if plan != "resume" else None)
 
+    # Loading the scene checks the file (syntax, sensor, references) before anything is written or removed.
     scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
     layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens,
                          hide_emitters=spec.hide_emitters)
     _check_shape_matches(config, layout)
+    job = ChunkJob(config=config, scene=source, grid=grid, index=0)
+    _WORKER_SCENES.clear()
+    _WORKER_SCENES[_scene_key(job)] = (scene, layout)
 
-    cells = math.prod(config.shape)
-    if path is None:
-        data = np.empty((cells, 3), dtype=np.float32)
-        state = _new_state(config, chunk_cells)
-    else:
-        data, state = _open_folder(path, config, spec, scene, layout, chunk_cells, resumable)
-    chunk = state["chunk_cells"]
-    chunk_count = -(-cells // chunk)
-    finished = set(state["finished_chunks"])
-
-    bar = _progress_bar(progress, cells * config.spp, len(finished), chunk, cells, config)
-    start_time = time.perf_counter()
     try:
-        for index in range(chunk_count):
-            if index in finished:
-                continue
-            first = index * chunk
-            count = min(chunk, cells - first)
-            means, nonfinite = scene.sample_cells(layout, config.shape, first, count, config.spp, config.seed)
-            overflow = ~np.all(np.isfinite(means), axis=1)  # finite samples whose float32 sum overflowed
-            if overflow.any():
-                cell = first + int(np.flatnonzero(overflow)[0])
-                if config.nonfinite == "error":
-                    raise NonFiniteSampleError(
-                        f"{int(overflow.sum())} cell means overflow float32 in cells {first}..{first + count - 1} "
-                        f"(first at cell {cell}): the scene's radiance is too large to store (float32 holds up to "
-                        f"3.4e38); scale the emitters down, or rerun with --nonfinite zero to store 0 in those cells. "
-                        f"{len(finished)} finished chunks are kept."
-                    )
-                means[overflow] = 0.0
-                nonfinite = nonfinite + overflow * config.spp
-            bad = int(nonfinite.sum())
-            if bad and config.nonfinite == "error":
-                cell = first + int(np.flatnonzero(nonfinite)[0])
-                raise NonFiniteSampleError(
-                    f"the renderer returned {bad} NaN or infinite samples in cells {first}..{first + count - 1} "
-                    f"(first at cell {cell}, grid index {tuple(int(i) for i in np.unravel_index(cell, config.shape))}); "
-                    f"{len(finished)} finished chunks are kept. Rerun with --nonfinite zero to count them and "
-                    "use 0 in their place."
-                )
-            data[first:first + count] = means
-            if bad:
-                state["nonfinite"][str(index)] = bad
-            if path is not None:
-                data.flush()
-                state["finished_chunks"].append(index)
-                write_json(os.path.join(path, PROGRESS_FILE), state)
-            finished.add(index)
+        if path is None:
+            return _acquire_in_memory(config, spec, scene, layout, job, progress)
+        return _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, workers,
+                                   scheduler)
+    finally:
+        _WORKER_SCENES.clear()  # the scene is not kept alive after the run
+
+
+def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, workers, scheduler):
+    grid = job.grid
+    created = not os.path.exists(path)
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as error:
+        raise ValueError(f"cannot create the output folder {path!r}: {error.strerror}") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise PermissionError(f"output folder {path!r} is not writable")
+    lock = StoreLock(path)
+    try:
+        lock.acquire()
+    except BaseException:
+        if created and not os.listdir(path):
+            os.rmdir(path)
+        raise
+    try:
+        if lock.previous_holder:
+            holder = lock.previous_holder
+            print(f"note: took over the lock of a run that is gone (PID {holder.get('pid')} on {holder.get('host')})")
+        plan = _inspect_store(path, config, identity, overwrite=overwrite)  # again, now that the store is ours
+        journal = ChunkJournal(path)
+        if plan == "resume":
+            meta = zarr_store.read_attributes(path)
+            grid = ChunkGrid(tuple(meta["shape"]), tuple(meta["chunk_shape"]))
+            finished = _verified_chunks(path, grid, journal, progress)
+        else:
+            zarr_store.remove_store(path)
+            meta = _meta(config, spec, scene, layout, identity, grid, status="incomplete")
+            zarr_store.create_store(path, grid, layout.axes, meta)
+            finished = {}
+        job = dataclasses.replace(job, grid=grid, store=path)
+        pending = [index for index in range(grid.count) if index not in finished]
+        seconds = _run_chunks(job, pending, finished, journal, progress, workers=workers, scheduler=scheduler)
+        return _finish(path, grid, journal, seconds)
+    finally:
+        zarr_store.forget_open_arrays(path)
+        lock.release()
+
+
+def _acquire_in_memory(config, spec, scene, layout, job, progress):
+    cells = math.prod(config.shape)
+    data = np.empty((cells, 3), dtype=np.float32)
+    bar = progress_bar(progress, total=cells * config.spp, description=f"{config.kind} {config.scene}", unit="sample")
+    start = time.perf_counter()
+    nonfinite = 0
+    try:
+        for index in range(job.grid.count):
+            record = sample_chunk(dataclasses.replace(job, index=index))
+            first, count, _ = job.grid.chunk(index)
+            data[first:first + count] = record["values"]
+            nonfinite += record["nonfinite"]
             if bar is not None:
                 bar.update(count * config.spp)
     finally:
         if bar is not None:
             bar.close()
-    seconds = time.perf_counter() - start_time
-    nonfinite_total = int(sum(state["nonfinite"].values()))
+    if nonfinite:
+        print(f"warning: {nonfinite} NaN or infinite samples counted and replaced by 0")
+    meta = _meta(config, spec, scene, layout, None, job.grid, status="complete")
+    meta.update(nonfinite_samples=nonfinite, sampling_seconds=time.perf_counter() - start)
+    return Signal(data=data.reshape(tuple(config.shape) + (3,)), kind=config.kind, axes=layout.axes, meta=meta)
+
+
+def _run_chunks(job, pending, finished, journal, progress, *, workers, scheduler):
+    """Sample the pending chunks, recording each in the journal as it lands; return the seconds spent."""
+    config, grid = job.config, job.grid
+    cells = math.prod(config.shape)
+    done_cells = sum(grid.chunk(index)[1] for index in finished)
+    bar = progress_bar(progress, total=cells * config.spp, description=f"{config.kind} {config.scene}", unit="sample",
+                       initial=done_cells * config.spp)
+    start = time.perf_counter()
+
+    def land(record):
+        journal.append([record])
+        finished[record["chunk"]] = record
+        if bar is not None:
+            bar.update(grid.chunk(record["chunk"])[1] * config.spp)
+
+    try:
+        if workers is None and scheduler is None:
+            for index in pending:
+                land(sample_chunk(dataclasses.replace(job, index=index)))
+        else:
+            _run_on_dask(job, pending, land, workers=workers, scheduler=scheduler)
+    finally:
+        if bar is not None:
+            bar.close()
+    return time.perf_counter() - start
+
+
+def _run_on_dask(job, pending, land, *, workers, scheduler):
+    from dask.distributed import as_completed
+
+    from ..distributed import dask_client, tasks_per_host
+
+    with dask_client(workers=workers, scheduler=scheduler) as client:
+        job = dataclasses.replace(job, concurrency=tasks_per_host(client))
+        # The renderer stays out of the task graph: the in-process scene is not sent.
+        futures = [client.submit(sample_chunk, dataclasses.replace(job, index=index), pure=False,
+                                 key=f"sparselt-chunk-{index}-{os.getpid()}-{time.monotonic_ns()}") for index in pending]
+        try:
+            for future in as_completed(futures):
+                land(future.result())
+        except BaseException:
+            client.cancel(futures)
+            raise
+
+
+def _finish(path, grid, journal, seconds):
+    """Mark a store complete once every chunk is in: checksums into the metadata, journal removed."""
+    records = journal.read()
+    zarr_store.remove_temporary_files(path)
+    missing = [index for index in range(grid.count) if index not in records] or zarr_store.missing_chunks(path, grid)
+    if missing:
+        raise RuntimeError(f"internal error: chunks {missing[:5]} of {path!r} are not written; rerun to resume")
+    nonfinite_total = int(sum(record["nonfinite"] for record in records.values()))
     if nonfinite_total:
         print(f"warning: {nonfinite_total} NaN or infinite samples counted and replaced by 0")
-
-    if path is None:
-        meta = _meta(config, spec, scene, layout, status="complete")
-        meta.update(nonfinite_samples=nonfinite_total, sampling_seconds=seconds)
-        return Signal(data=data.reshape(tuple(config.shape) + (3,)), kind=config.kind, axes=layout.axes, meta=meta)
-
-    del data
-    partial = os.path.join(path, PARTIAL_DATA_FILE)
-    if os.path.exists(partial):
-        os.replace(partial, os.path.join(path, DATA_FILE))
-    meta = read_json(os.path.join(path, META_FILE))
-    meta.update(status="complete", nonfinite_samples=nonfinite_total, chunk_cells=chunk)
+    meta = zarr_store.read_attributes(path)
+    meta.update(status="complete", nonfinite_samples=nonfinite_total,
+                chunk_crc32=[records[index]["crc32"] for index in range(grid.count)])
     meta["sampling_seconds"] = meta.get("sampling_seconds", 0.0) + seconds
-    write_json(os.path.join(path, META_FILE), meta)
-    os.remove(os.path.join(path, PROGRESS_FILE))
+    zarr_store.write_attributes(path, meta)
+    journal.remove()
     return load_signal(path)
 
 
-def _progress_bar(enabled, total, finished_chunks, chunk, cells, config):
-    done = min(cells, finished_chunks * chunk) * config.spp if finished_chunks else 0
-    return progress_bar(enabled, total=total, description=f"{config.kind} {config.scene}", unit="sample", initial=done)
+def _verified_chunks(path, grid, journal, progress):
+    """Journal records whose chunk still matches its checksum; damaged ones are dropped (sampled again)."""
+    records = journal.read()
+    damaged = []
+    for index, record in list(records.items()):
+        if index >= grid.count:
+            damaged.append(index)
+            continue
+        values = zarr_store.read_chunk(path, grid, index)
+        if values is None or zarr_store.checksum(values) != record["crc32"]:
+            damaged.append(index)
+    for index in damaged:
+        records.pop(index, None)
+    if damaged:
+        if progress:
+            print(f"note: {len(damaged)} recorded chunks of {path!r} are missing or damaged "
+                  f"(first: chunk {min(damaged)}); sampling them again")
+        journal.rewrite(records)
+    return records
 
 
-def _meta(config, spec, scene, layout, *, status):
+def _check_disk_space(path, grid):
+    """Refuse a new store larger than the free space: every chunk file rounded up to whole blocks."""
+    if grid is None:
+        return
+    probe = path
+    while not os.path.exists(probe):
+        probe = os.path.dirname(probe)
+    free = shutil.disk_usage(probe).free
+    block = max(512, os.statvfs(probe).f_bsize)
+    chunk_bytes = grid.cells_per_chunk * 3 * 4
+    nbytes = grid.count * -(-chunk_bytes // block) * block + 4 * block  # uncompressed: an upper bound
+    if nbytes > free:
+        raise ValueError(f"the signal takes up to {format_bytes(nbytes)} but only {format_bytes(free)} of disk is free "
+                         f"at {path!r}")
+
+
+def _meta(config, spec, scene, layout, identity, grid, *, status):
     camera = scene.camera
     return {
-        "format": "sparselt-signal",
+        "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "status": status,
         "config": config.record(),
         "scene": spec.name,
         "scene_description": spec.description,
+        "scene_identity": identity,
         "hide_emitters": spec.hide_emitters,
         "camera": {
             "fov": camera.fov,
@@ -307,45 +550,70 @@ def _meta(config, spec, scene, layout, *, status):
         "axes": list(layout.axes),
         "dimensions": list(layout.dimensions),
         "shape": list(config.shape),
+        "chunk_shape": list(grid.chunk_shape),
+        "chunk_count": grid.count,
+        "chunk_cells": grid.cells_per_chunk,
         "spp": config.spp,
         "seed": config.seed,
         "max_depth": config.max_depth,
         "variant": config.variant,
         "dtype": "float32",
+        "storage": {"format": "zarr", "zarr_format": 3, "compressor": f"zstd level {zarr_store.COMPRESSION_LEVEL}",
+                    "checksum": "crc32 of each chunk's float32 C-order bytes"},
         "provenance": environment_record(),
     }
 
 
-def _prepare_folder(path, config, *, overwrite):
-    """Decide what to do with an existing folder; return the progress to resume or ``None``."""
-    status = signal_status(path)
+def _inspect_store(path, config, identity, *, overwrite):
+    """What to do with ``path``: 'new', 'resume' or 'replace' (nothing is changed here); refusals raise."""
     if os.path.exists(path) and not os.path.isdir(path):
         raise ValueError(f"output path {path!r} is an existing file, not a folder")
-    if status == "incomplete" and os.path.isfile(os.path.join(path, PROGRESS_FILE)):
-        meta = read_json(os.path.join(path, META_FILE))
-        has_data = any(os.path.isfile(os.path.join(path, name)) for name in (PARTIAL_DATA_FILE, DATA_FILE))
-        if _same_signal(meta.get("config") or {}, config.record()) and has_data:
-            if meta["config"].get("nonfinite") != config.nonfinite:  # the policy may change on resume
-                meta["config"]["nonfinite"] = config.nonfinite
-                write_json(os.path.join(path, META_FILE), meta)
-            return read_json(os.path.join(path, PROGRESS_FILE))
+    status = zarr_store.store_status(path)
+    if status is None:
+        entries = [name for name in os.listdir(path) if name != LOCK_FILE] if os.path.isdir(path) else []
+        if entries and not overwrite:
+            raise ValueError(f"output folder {path!r} exists, is not empty and is not a signal; "
+                             "pass --overwrite or choose another path")
+        return "replace" if entries else "new"
+    if status == "complete":
         if not overwrite:
-            raise ValueError(
-                f"{path!r} holds an unfinished signal of a different configuration; "
-                "pass --overwrite to replace it, or rerun its own command to resume it"
-            )
-    elif status == "complete" and not overwrite:
-        raise ValueError(f"signal {path!r} already exists; pass --overwrite to replace it")
-    elif status is None and os.path.isdir(path) and os.listdir(path) and not overwrite:
-        raise ValueError(f"output folder {path!r} exists, is not empty and is not a signal; pass --overwrite or choose another path")
-    os.makedirs(path, exist_ok=True)
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise PermissionError(f"output folder {path!r} is not writable")
-    for name in (META_FILE, DATA_FILE, PARTIAL_DATA_FILE, PROGRESS_FILE):
-        target = os.path.join(path, name)
-        if os.path.exists(target):
-            os.remove(target)
-    return None
+            raise ValueError(f"signal {path!r} already exists; pass --overwrite to replace it")
+        return "replace"
+    if status == "legacy":
+        if not overwrite:
+            raise ValueError(f"{path!r} holds a signal in the old .npy folder format; pass --overwrite to replace it")
+        return "replace"
+    try:
+        meta = zarr_store.read_attributes(path)
+    except ValueError:
+        if not overwrite:
+            raise
+        return "replace"
+    if not _same_signal(meta.get("config") or {}, config.record()):
+        if overwrite:
+            return "replace"
+        raise ValueError(f"{path!r} holds an unfinished signal of a different configuration; "
+                         "pass --overwrite to replace it, or rerun its own command to resume it")
+    recorded = (meta.get("scene_identity") or {}).get("digest")
+    if recorded != identity["digest"]:
+        if overwrite:
+            return "replace"
+        changed = _changed_files(meta.get("scene_identity") or {}, identity)
+        raise ValueError(f"the scene of the unfinished signal {path!r} has changed since it was started"
+                         f"{' (' + changed + ')' if changed else ''}; resuming would mix two scenes. "
+                         "Restore the scene, or pass --overwrite to start again")
+    if meta["config"].get("nonfinite") != config.nonfinite:  # the NaN policy may change on resume
+        meta["config"]["nonfinite"] = config.nonfinite
+        zarr_store.write_attributes(path, meta)
+    return "resume"
+
+
+def _changed_files(recorded, current):
+    before, after = recorded.get("files") or {}, current.get("files") or {}
+    names = [name for name in sorted(set(before) | set(after)) if before.get(name) != after.get(name)]
+    if names:
+        return "changed: " + ", ".join(names[:3]) + (" ..." if len(names) > 3 else "")
+    return "its description or the code generating it changed" if recorded.get("source") == "description" else ""
 
 
 def _same_signal(recorded, requested):
@@ -353,24 +621,3 @@ def _same_signal(recorded, requested):
     ignore = ("nonfinite",)
     return ({k: v for k, v in recorded.items() if k not in ignore}
             == {k: v for k, v in requested.items() if k not in ignore})
-
-
-def _open_folder(path, config, spec, scene, layout, chunk_cells, resumable):
-    cells = math.prod(config.shape)
-    partial = os.path.join(path, PARTIAL_DATA_FILE)
-    if resumable is not None:
-        if not os.path.exists(partial):  # killed between the final rename and the final metadata
-            os.replace(os.path.join(path, DATA_FILE), partial)
-        data = np.lib.format.open_memmap(partial, mode="r+")
-        return data.reshape(cells, 3), resumable
-    write_json(os.path.join(path, META_FILE), _meta(config, spec, scene, layout, status="incomplete"))
-    data = np.lib.format.open_memmap(partial, mode="w+", dtype=np.float32, shape=tuple(config.shape) + (3,))
-    state = _new_state(config, chunk_cells)
-    write_json(os.path.join(path, PROGRESS_FILE), state)
-    return data.reshape(cells, 3), state
-
-
-def _new_state(config, chunk_cells):
-    """Progress of a new acquisition: the chunking and what has been done."""
-    chunk = chunk_cells or max(1, LANES_PER_CHUNK // config.spp)
-    return {"chunk_cells": chunk, "chunk_count": -(-math.prod(config.shape) // chunk), "finished_chunks": [], "nonfinite": {}}

@@ -113,6 +113,14 @@ def initialize(variant=None):
     return mi
 
 
+def set_thread_count(count):
+    """Size Dr.Jit's CPU thread pool (a Dask worker takes its share of the machine's cores)."""
+    import drjit as drjit_module
+
+    if drjit_module.thread_count() != int(count):
+        drjit_module.set_thread_count(int(count))
+
+
 def versions():
     """Versions of the rendering stack, for provenance records."""
     import drjit as drjit_module
