@@ -35,7 +35,6 @@ import numpy as np
 from sparselt import load_signal
 from sparselt.distributed import WORKER_THREADS_VARIABLE, dask_client
 from sparselt.rendering.acquire import AcquisitionConfig, acquire_signal, signal_bytes
-from sparselt.storage import ChunkGrid
 
 THESIS_SAMPLES = 100 * 100 * 4**8 * 64
 THESIS_CELLS = 100 * 100 * 4**8
@@ -90,7 +89,8 @@ def main():
             del os.environ[WORKER_THREADS_VARIABLE]
         with dask_client(workers=2, say=lambda *_: None) as client:
             two_workers = timed(big, out, scheduler=client.scheduler.address)
-        chunk_count = ChunkGrid.for_cells(shape, (1 << 22) // arguments.spp).count
+        stored = load_signal(out).meta
+        chunk_count, chunk_cells = stored["chunk_count"], stored["chunk_cells"]
         print(f"{'run':42s} {'seconds':>8s} {'M samples/s':>12s}")
         for name, seconds in (("in-process (Dr.Jit pool: all cores)", in_process),
                               ("1 Dask worker (its share: all cores)", one_worker),
@@ -133,7 +133,7 @@ def main():
         per_chunk = two_workers / chunk_count
         thesis_chunks = THESIS_CELLS // ((1 << 22) // 64)
         print(f"measured: {rate / 1e6:.2f} M samples/s per 2-core machine ({arguments.scene}, depth 3), "
-              f"{per_chunk * 1e3:.1f} ms per chunk of {(1 << 22) // arguments.spp} cells")
+              f"{per_chunk * 1e3:.1f} ms per chunk of {chunk_cells} cells ({chunk_count} chunks)")
         for machines in (1, 8, 64):
             hours = THESIS_SAMPLES / (rate * machines) / 3600
             print(f"thesis signal (4.2e10 samples, {thesis_chunks} chunks, 7.9 GB) on {machines:2d} machines of 2 cores: "

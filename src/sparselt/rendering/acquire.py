@@ -24,6 +24,7 @@ written or removed.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -49,6 +50,7 @@ DEFAULT_MAX_DEPTH = 3
 LANES_PER_CHUNK = 1 << 22
 MAXIMUM_SPP = 1 << 16
 LANES_PER_LAUNCH = 1 << 32  # Dr.Jit's 32-bit lane indices: cells x spp of one launch stay below
+CHUNKS_PER_WORKER = 4  # default chunking of a local cluster run: at least this many chunks per worker
 MAXIMUM_AXES = 63  # NumPy arrays have at most 64 axes, one of them RGB
 NONFINITE_POLICIES = ("error", "zero")
 
@@ -277,7 +279,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         Show a progress bar (samples, rate, ETA) on standard error.
     chunk_cells : int, optional
         At most this many cells per chunk (default: about 4M samples per
-        chunk). The data do not depend on it; a resumed run keeps the chunking
+        chunk, and at least 4 chunks per worker with ``workers``). The data do not depend on it; a resumed run keeps the chunking
         it started with.
     scene_spec : SceneSpec, optional
         Use this scene description instead of resolving ``config.scene``.
@@ -326,7 +328,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens,
                              hide_emitters=spec.hide_emitters)
         _check_shape_matches(config, layout)
-    grid = ChunkGrid.for_cells(config.shape, chunk_cells or max(1, LANES_PER_CHUNK // config.spp))
+    grid = _chunking(config, chunk_cells, parallelism=None)
     nbytes = signal_bytes(config.shape)
     if path is None:
         available = available_memory()
@@ -343,7 +345,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         identity = scene_identity(spec)
         check_unlocked(path)
         plan = _inspect_store(path, config, identity, overwrite=overwrite)
-        _check_disk_space(path, grid if plan != "resume" else None)
+        _check_disk_space(path, grid if plan != "resume" else None)  # again below with the cluster's chunking
 
     # Loading the scene checks the file (syntax, sensor, references) before anything is written or removed.
     scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
@@ -357,13 +359,31 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     try:
         if path is None:
             return _acquire_in_memory(config, spec, scene, layout, job, progress)
-        return _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, workers,
-                                   scheduler)
+        with contextlib.ExitStack() as stack:
+            client = None
+            if distributed:
+                from ..distributed import dask_client, tasks_per_host
+
+                client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
+                job = dataclasses.replace(job, concurrency=tasks_per_host(client))
+                grid = _chunking(config, chunk_cells, parallelism=sum(job.concurrency.values()))
+                job = dataclasses.replace(job, grid=grid)
+                _check_disk_space(path, grid if plan != "resume" else None)
+            return _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client)
     finally:
         _WORKER_SCENES.clear()  # the scene is not kept alive after the run
 
 
-def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, workers, scheduler):
+def _chunking(config, chunk_cells, *, parallelism):
+    """The chunk grid: ``chunk_cells`` if given, else about 4M samples per chunk and, on a cluster of
+    ``parallelism`` task slots, at least :data:`CHUNKS_PER_WORKER` chunks per slot."""
+    target = chunk_cells or max(1, LANES_PER_CHUNK // config.spp)
+    if chunk_cells is None and parallelism:
+        target = min(target, max(1, -(-math.prod(config.shape) // (CHUNKS_PER_WORKER * parallelism))))
+    return ChunkGrid.for_cells(config.shape, target)
+
+
+def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client):
     grid = job.grid
     created = not os.path.exists(path)
     try:
@@ -396,7 +416,7 @@ def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwr
             finished = {}
         job = dataclasses.replace(job, grid=grid, store=path)
         pending = [index for index in range(grid.count) if index not in finished]
-        seconds = _run_chunks(job, pending, finished, journal, progress, workers=workers, scheduler=scheduler)
+        seconds = _run_chunks(job, pending, finished, journal, progress, client)
         return _finish(path, grid, journal, seconds)
     finally:
         zarr_store.forget_open_arrays(path)
@@ -427,7 +447,7 @@ def _acquire_in_memory(config, spec, scene, layout, job, progress):
     return Signal(data=data.reshape(tuple(config.shape) + (3,)), kind=config.kind, axes=layout.axes, meta=meta)
 
 
-def _run_chunks(job, pending, finished, journal, progress, *, workers, scheduler):
+def _run_chunks(job, pending, finished, journal, progress, client):
     """Sample the pending chunks, recording each in the journal as it lands; return the seconds spent."""
     config, grid = job.config, job.grid
     cells = math.prod(config.shape)
@@ -443,33 +463,29 @@ def _run_chunks(job, pending, finished, journal, progress, *, workers, scheduler
             bar.update(grid.chunk(record["chunk"])[1] * config.spp)
 
     try:
-        if workers is None and scheduler is None:
+        if client is None:
             for index in pending:
                 land(sample_chunk(dataclasses.replace(job, index=index)))
         else:
-            _run_on_dask(job, pending, land, workers=workers, scheduler=scheduler)
+            _run_on_dask(client, job, pending, land)
     finally:
         if bar is not None:
             bar.close()
     return time.perf_counter() - start
 
 
-def _run_on_dask(job, pending, land, *, workers, scheduler):
+def _run_on_dask(client, job, pending, land):
     from dask.distributed import as_completed
 
-    from ..distributed import dask_client, tasks_per_host
-
-    with dask_client(workers=workers, scheduler=scheduler) as client:
-        job = dataclasses.replace(job, concurrency=tasks_per_host(client))
-        # The renderer stays out of the task graph: the in-process scene is not sent.
-        futures = [client.submit(sample_chunk, dataclasses.replace(job, index=index), pure=False,
-                                 key=f"sparselt-chunk-{index}-{os.getpid()}-{time.monotonic_ns()}") for index in pending]
-        try:
-            for future in as_completed(futures):
-                land(future.result())
-        except BaseException:
-            client.cancel(futures)
-            raise
+    # The renderer stays out of the task graph: the in-process scene is not sent, only the job.
+    futures = [client.submit(sample_chunk, dataclasses.replace(job, index=index), pure=False,
+                             key=f"sparselt-chunk-{index}-{os.getpid()}-{time.monotonic_ns()}") for index in pending]
+    try:
+        for future in as_completed(futures):
+            land(future.result())
+    except BaseException:
+        client.cancel(futures)
+        raise
 
 
 def _finish(path, grid, journal, seconds):
