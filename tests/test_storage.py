@@ -311,3 +311,17 @@ def test_out_of_core_gini_and_image_read_the_store_chunk_by_chunk(tmp_path, corn
         streamed = signal_gini(stored, domain=domain, memory_limit_bytes=2**20, buckets=2**12)
         assert exact.exact and not streamed.exact
         assert np.all(np.abs(streamed.values - exact.values) <= streamed.error_bounds + 1e-12)
+
+
+def test_show_on_a_dask_cluster_writes_the_same_image(tmp_path):
+    signal = tmp_path / "signal"
+    assert subprocess.run(command(signal, *DOF, shape="32,32,4,4", chunk=1024), capture_output=True).returncode == 0
+    local = subprocess.run([sys.executable, "-m", "sparselt.cli", "show", str(signal), "--out", str(tmp_path / "a")],
+                           capture_output=True, text=True)
+    cluster = subprocess.run([sys.executable, "-m", "sparselt.cli", "show", str(signal), "--out", str(tmp_path / "b"),
+                              "--workers", "2"], capture_output=True, text=True)
+    assert local.returncode == 0 and cluster.returncode == 0, cluster.stderr
+    assert "dashboard at http" in cluster.stdout
+    from matplotlib import image
+
+    assert np.array_equal(image.imread(tmp_path / "a" / "image.png"), image.imread(tmp_path / "b" / "image.png"))

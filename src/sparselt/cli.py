@@ -83,11 +83,7 @@ def build_parser():
                         help="NaN/Inf samples: stop with an error (default) or count them and use 0")
     sample.add_argument("--chunk-cells", type=int, default=None, help="cells per chunk (default: about 4M samples)")
     sample.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    cluster = sample.add_mutually_exclusive_group()
-    cluster.add_argument("--workers", type=int, default=None,
-                         help="sample on a local Dask cluster of this many worker processes")
-    cluster.add_argument("--scheduler", default=None,
-                         help="sample on an existing Dask cluster (scheduler address); its workers must reach --out")
+    _add_cluster_options(sample, "sample on")
     _add_camera_options(sample)
     sample.set_defaults(handler=_sample)
 
@@ -175,6 +171,7 @@ def build_parser():
     show.add_argument("signal", help="signal folder")
     show.add_argument("--out", required=True, help="output folder")
     show.add_argument("--overwrite", action="store_true", help="replace files in an existing output folder")
+    _add_cluster_options(show, "compute the integrated image on")
     show.set_defaults(handler=_show)
     return parser
 
@@ -187,6 +184,13 @@ def _scenes(arguments):
         lens = "thin lens" if spec.camera is not None and spec.camera.thin_lens else "pinhole"
         print(f"{name:18s} {lens:9s} {spec.description}")
     return 0
+
+
+def _add_cluster_options(parser, what):
+    cluster = parser.add_mutually_exclusive_group()
+    cluster.add_argument("--workers", type=int, default=None, help=f"{what} a local Dask cluster of this many worker processes")
+    cluster.add_argument("--scheduler", default=None,
+                         help=f"{what} an existing Dask cluster (scheduler address); its workers must reach the signal")
 
 
 def _sample(arguments):
@@ -285,7 +289,14 @@ def _show(arguments):
 
     signal = load_signal(arguments.signal)
     check_output_folder(arguments.out, overwrite=arguments.overwrite)
-    for path in show_signal(signal, arguments.out):
+    if arguments.workers is None and arguments.scheduler is None:
+        written = show_signal(signal, arguments.out)
+    else:
+        from .distributed import dask_client
+
+        with dask_client(workers=arguments.workers, scheduler=arguments.scheduler) as client:
+            written = show_signal(signal, arguments.out, client=client)
+    for path in written:
         print(f"wrote {path}")
     return 0
 

@@ -9,7 +9,7 @@ import numpy as np
 from .images import reference_exposure, save_figure, srgb_tonemap, write_png
 
 
-def show_signal(signal, out, *, grid=4):
+def show_signal(signal, out, *, grid=4, client=None):
     """Write pictures of ``signal`` into folder ``out``.
 
     Files
@@ -26,6 +26,9 @@ def show_signal(signal, out, *, grid=4):
         averaged over the remaining axes. This is the per-pixel signal that
         sparse reconstruction works on (thesis figures 5.2, 7.3).
 
+    ``client`` (a ``distributed.Client``) computes the integrated image on a
+    Dask cluster (see :meth:`Signal.image`); the slices read single chunks.
+
     Returns
     -------
     list of str
@@ -38,7 +41,7 @@ def show_signal(signal, out, *, grid=4):
 
     os.makedirs(out, exist_ok=True)
     written = []
-    image = signal.image()
+    image = signal.image(client=client)
     exposure = reference_exposure(image)
     write_png(os.path.join(out, "image.png"), image, exposure=exposure)
     written.append(os.path.join(out, "image.png"))
