@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 # Constants live where they are defined; these modules import neither Mitsuba nor Dr.Jit.
@@ -149,7 +150,9 @@ def build_parser():
     compare.add_argument("--reference-spp", type=int, default=4096, help="reference samples per pixel (default: %(default)s)")
     compare.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
     compare.add_argument("--gamma", type=float, default=None, help="gamma of eq. 7.1 for CoSaMP (default 0.25; thesis: 0.25 DoF, 0.5 architecture)")
-    compare.add_argument("--sparsity", type=int, default=None, help="K for CoSaMP (default N/200)")
+    compare.add_argument("--sparsity", type=int, default=None, help="K for CoSaMP (default N/200) and the SFT (default N/10^4)")
+    compare.add_argument("--alpha", type=float, default=None, help="sft methods: buckets per coefficient, B = alpha K (default 4)")
+    compare.add_argument("--sft-snr", type=float, default=None, help="sft methods: SNR in dB the SFT assumes (default 10)")
     compare.add_argument("--thesis-faithful", action="store_true", help="make 'cosamp' follow thesis 8.1.1 exactly")
     compare.add_argument("--map-spp", type=int, default=None, help="guided methods: pilot samples per map pixel (default 16)")
     compare.add_argument("--defensive", type=float, default=None, help="guided methods: weight of the uniform density (default 0.1)")
@@ -162,6 +165,31 @@ def build_parser():
     compare.add_argument("--no-progress", action="store_true", help="hide progress output")
     _add_camera_options(compare)
     compare.set_defaults(handler=_compare)
+
+    table = commands.add_parser(
+        "table61", help="the SFT on a rendered path space: Table 6.1 and Figures 6.1/6.2",
+        description="Sparse Fourier Transform of a rendered path-space signal through the renderer as its oracle "
+                    "(thesis 6.1): samples per alpha beside the thesis's Table 6.1, image quality against a reference "
+                    "and against path tracing at equal samples and equal time, and how compressible the signal is.")
+    table.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
+    table.add_argument("--kind", default="path", choices=("path", "path-indirect", "dof", "indirect"),
+                       help="signal kind (default: path)")
+    table.add_argument("--shape", type=_shape, default=(100, 100) + (4,) * 8,
+                       help="grid (default: the thesis's 100,100,4,4,4,4,4,4,4,4)")
+    table.add_argument("--alpha", type=_numbers, default=(4.0, 16.0, 32.0), help="buckets per coefficient (default 4,16,32)")
+    table.add_argument("--spp", type=int, default=1, help="path samples per lattice point (default: %(default)s)")
+    table.add_argument("--noise-spp", type=_shape, default=(4,),
+                       help="also run the first alpha at these samples per point (default: 4)")
+    table.add_argument("--sparsity", type=int, default=None, help="K (default N/10^4, as the thesis)")
+    table.add_argument("--snr", type=float, default=10.0, help="SNR in dB the SFT assumes (default: %(default)s)")
+    table.add_argument("--seed", type=int, default=1, help="seed (default: %(default)s)")
+    table.add_argument("--reference-spp", type=int, default=1024, help="reference samples per pixel (default: %(default)s)")
+    table.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
+    table.add_argument("--compressibility-shape", type=_shape, default=None,
+                       help="grid fully sampled to measure compressibility (default: image /4, other axes /2)")
+    table.add_argument("--out", required=True, help="output folder (rerun to resume)")
+    table.add_argument("--no-progress", action="store_true", help="hide progress output")
+    table.set_defaults(handler=_table61)
 
     methods = commands.add_parser("methods", help="list the comparison methods",
                                   description="List the registered comparison methods, the kinds they support and what they do.")
@@ -266,10 +294,27 @@ def _compare(arguments):
         reference_spp=arguments.reference_spp, max_depth=arguments.max_depth, aperture=arguments.aperture,
         focus_distance=arguments.focus_distance, gamma=arguments.gamma, sparsity=arguments.sparsity,
         thesis_faithful=arguments.thesis_faithful, map_spp=arguments.map_spp, defensive=arguments.defensive,
-        guiding_mode=arguments.guiding_mode, caustic_mask=arguments.caustic_mask, variant=arguments.variant)
+        guiding_mode=arguments.guiding_mode, caustic_mask=arguments.caustic_mask, alpha=arguments.alpha,
+        sft_snr=arguments.sft_snr, variant=arguments.variant)
     result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
     print(result.table())
     print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
+    return 0
+
+
+def _table61(arguments):
+    from .experiments.sft_path_space import Table61Config, run_table61
+
+    config = Table61Config(scene=arguments.scene, shape=tuple(arguments.shape), kind=arguments.kind,
+                           alphas=tuple(arguments.alpha), spp=arguments.spp, noise_spps=tuple(arguments.noise_spp),
+                           sparsity=arguments.sparsity, snr=arguments.snr, seed=arguments.seed,
+                           reference_spp=arguments.reference_spp, max_depth=arguments.max_depth,
+                           compressibility_shape=tuple(arguments.compressibility_shape)
+                           if arguments.compressibility_shape else None)
+    run_table61(config, arguments.out, progress=not arguments.no_progress)
+    with open(os.path.join(arguments.out, "table_6_1.md"), encoding="utf-8") as handle:
+        print(handle.read())
+    print(f"wrote {arguments.out}")
     return 0
 
 

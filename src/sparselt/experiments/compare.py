@@ -53,7 +53,7 @@ from ..rendering.layout import path_layout
 from ..rendering.scenes import SceneSpec, get_scene
 from . import compare_report
 
-KINDS = ("dof", "indirect", "path")
+KINDS = ("dof", "indirect", "path", "path-indirect")
 RELMSE_EPSILON = 0.01
 RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", "seconds_reconstruction",
                   "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
@@ -105,6 +105,9 @@ class ComparisonConfig:
         (default) or 'global'.
     caustic_mask : bool
         Also report ``relmse_caustic``: relMSE inside :func:`caustic_mask`.
+    alpha, sft_snr : float or None
+        The ``sft`` and ``guided-sft`` methods: buckets per coefficient
+        (default 4) and the SNR in dB the SFT assumes (default 10).
     variant : str
         Mitsuba variant.
     """
@@ -128,6 +131,8 @@ class ComparisonConfig:
     defensive: float | None = None
     guiding_mode: str | None = None
     caustic_mask: bool = False
+    alpha: float | None = None
+    sft_snr: float | None = None
     variant: str = "llvm_ad_rgb"
 
     @property
@@ -147,7 +152,8 @@ class ComparisonConfig:
 
     def method_options(self):
         return {"gamma": self.gamma, "sparsity": self.sparsity, "thesis_faithful": self.thesis_faithful,
-                "map_spp": self.map_spp, "defensive": self.defensive, "guiding_mode": self.guiding_mode}
+                "map_spp": self.map_spp, "defensive": self.defensive, "guiding_mode": self.guiding_mode,
+                "alpha": self.alpha, "sft_snr": self.sft_snr}
 
 
 @dataclass

@@ -17,15 +17,15 @@ class PathTracing(Method):
     """
 
     name = "pt"
-    kinds = ("dof", "indirect", "path")
-    description = "path tracing: Mitsuba's path integrator (the kind's own estimator for 'indirect')"
+    kinds = ("dof", "indirect", "path", "path-indirect")
+    description = "path tracing: Mitsuba's path integrator (the kind's own estimator for 'indirect', 'path-indirect')"
 
     def run(self, context, budget):
         timer = PhaseTimer()
-        if context.kind == "indirect":
+        if context.kind in ("indirect", "path-indirect"):
             with timer("sampling"):
                 image, nonfinite = context.scene.render_estimator(context.layout, budget.spp, budget.seed)
-            details = {"integrator": "sparselt indirect estimator, one kernel", "nonfinite_samples": nonfinite}
+            details = {"integrator": f"sparselt {context.kind} estimator, one kernel", "nonfinite_samples": nonfinite}
         else:
             image, seconds = context.scene.render_path(budget.spp, context.max_depth, budget.seed)
             timer.seconds["sampling"] = seconds

@@ -39,3 +39,4 @@ def _load_builtin():
     from . import cosamp_reconstruction  # noqa: F401
     from . import filtered  # noqa: F401
     from . import guided  # noqa: F401
+    from . import sft_reconstruction  # noqa: F401

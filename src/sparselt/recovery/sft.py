@@ -83,6 +83,7 @@ from ..checks import check_integer
 from ..fourier import fft
 from ..fourier.sparse import SparseFourier
 from .result import RecoveryResult
+from .sample_cache import IndexedValues
 from .sft_filters import Filter, choose_bins, divisors, make_filter, random_coprime
 
 LARGEST_SAMPLE = 1e150  # squares and sums of squares of the samples must stay finite in float64
@@ -219,18 +220,23 @@ class _SampleCache:
     def __init__(self, oracle, size):
         self.oracle = oracle
         self.size = size
-        self.indices = np.zeros(0, dtype=np.int64)
-        self.values = np.zeros(0, dtype=np.complex128)
+        self.store = IndexedValues(size, (), np.complex128)
         self.phase = "support"
         self.counts = {"support": 0, "magnitude": 0}
         self.oracle_time = 0.0
 
     @property
     def count(self):
-        return int(self.indices.size)
+        return int(self.store.count)
+
+    @property
+    def values(self):
+        return self.store.values
 
     def _call(self, indices):
         start = time.perf_counter()
+        if hasattr(self.oracle, "sft_phase"):  # an oracle that counts its own samples per phase is told the phase
+            self.oracle.sft_phase = self.phase
         values = self.oracle(indices)
         self.oracle_time += time.perf_counter() - start
         values = np.asarray(values)
@@ -251,28 +257,13 @@ class _SampleCache:
         return values.astype(np.complex128, copy=False)
 
     def read(self, indices):
-        """``x[indices]`` for distinct ``indices`` (any order), reading only the new ones."""
+        """``x[indices]`` for indices (any order, repeats allowed), reading only the new ones (sorted)."""
         indices = np.asarray(indices, dtype=np.int64)
-        if self.indices.size:
-            position = np.searchsorted(self.indices, indices)
-            known = self.indices[np.minimum(position, self.indices.size - 1)] == indices
-        else:
-            position = np.zeros(indices.size, dtype=np.int64)
-            known = np.zeros(indices.size, dtype=bool)
-        out = np.empty(indices.size, dtype=np.complex128)
-        if known.any():
-            out[known] = self.values[position[known]]
-        if not known.all():
-            order = np.argsort(indices[~known], kind="stable")
-            missing = indices[~known][order]
-            values = self._call(missing)
-            new = np.flatnonzero(~known)[order]
-            out[new] = values
-            insert_at = position[~known][order]
-            self.indices = np.insert(self.indices, insert_at, missing)
-            self.values = np.insert(self.values, insert_at, values)
+        missing = self.store.missing(indices)
+        if missing.size:
+            self.store.add(missing, self._call(missing))
             self.counts[self.phase] += int(missing.size)
-        return out
+        return self.store.get(indices)
 
 
 # ---------------------------------------------------------------------------
@@ -541,7 +532,9 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
     oracle : callable
         ``oracle(indices) -> values``: the signal at the given indices (a
         sorted int64 array of distinct indices in ``[0, n)``), one finite
-        real or complex value each. No index is asked for twice.
+        real or complex value each. No index is asked for twice. An oracle
+        with a writable ``sft_phase`` attribute is told the phase reading
+        ('support' or 'magnitude') before each call.
     n : int
         Signal length, ``0 < n < 2**31``. Powers of two and smooth sizes
         work best: the number of bins ``B`` must divide ``n``.

@@ -314,7 +314,7 @@ class MitsubaScene:
             interaction = next_interaction
         return result
 
-    def sample_cells(self, layout, grid_shape, first_cell, cell_count, spp, seed):
+    def sample_cells(self, layout, grid_shape, first_cell, cell_count, spp, seed, *, cells=None):
         """Mean of ``spp`` jittered samples in each of a run of grid cells.
 
         Parameters
@@ -330,6 +330,12 @@ class MitsubaScene:
         seed : int
             Seed in ``[0, 2**32)``.
 
+        cells : array_like of int, optional
+            Sample these cells (flat C-order indices, any order, repeats
+            allowed) instead of the run; ``first_cell`` and ``cell_count``
+            are then ignored. A cell's samples are the same either way: the
+            Sparse Fourier Transform's oracle reads single cells through it.
+
         Returns
         -------
         means : ndarray, shape (cell_count, 3), float32
@@ -337,7 +343,11 @@ class MitsubaScene:
         nonfinite : ndarray, shape (cell_count,), int64
             Number of samples in each cell whose value was NaN or infinite.
         """
-        cell, generator, _ = _lanes(cell_count, spp, seed, first=first_cell)
+        items = None
+        if cells is not None:
+            cells = np.ascontiguousarray(cells, dtype=np.uint32)
+            cell_count, items = int(cells.size), mi.UInt32(cells)
+        cell, generator, _ = _lanes(cell_count, spp, seed, first=first_cell, items=items)
         strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
         axis_of = {name: position for position, name in enumerate(layout.axes)}
         samples = {}
@@ -563,8 +573,11 @@ class MitsubaScene:
 GUIDED_STREAM = 0x9E37  # PCG32 stream of guided renders, apart from the signal and pixel-sample streams
 
 
-def _lanes(count, spp, seed, *, first=0, stream=0):
+def _lanes(count, spp, seed, *, first=0, stream=0, items=None):
     """One lane per sample: ``spp`` samples of each of ``count`` items (cells or pixels) from ``first``.
+
+    With ``items`` (a ``mi.UInt32`` of ``count`` item numbers) the items are
+    those instead of the run ``first, first + 1, ...``.
 
     Returns ``(item, generator, lanes)``. Each lane's PCG32 is seeded with a
     TEA hash of (item, sample index, seed), so a sample's random numbers are a
@@ -575,7 +588,10 @@ def _lanes(count, spp, seed, *, first=0, stream=0):
     lanes = int(count) * int(spp)
     index = dr.arange(mi.UInt32, lanes)
     samples_per_item = dr.opaque(mi.UInt32, int(spp))
-    item = dr.opaque(mi.UInt32, int(first)) + index // samples_per_item
+    if items is None:
+        item = dr.opaque(mi.UInt32, int(first)) + index // samples_per_item
+    else:
+        item = dr.gather(mi.UInt32, items, index // samples_per_item)
     sample_index = index % samples_per_item
     seed_value = dr.opaque(mi.UInt32, int(seed))
     generator = mi.PCG32()

@@ -1,0 +1,309 @@
+"""`sparselt table61`: the Sparse Fourier Transform on a rendered path space (thesis 6.1, Table 6.1).
+
+For each ``alpha`` the SFT reconstructs the scene's cell-mean signal over the
+grid, reading lattice points through the renderer (``spp`` path samples
+each, every one counted), and the image is integrated from the recovered
+spectrum (:mod:`sparselt.recovery.path_space`). Beside the thesis's sample
+counts the table gives what the images are worth: SSIM and relMSE
+(epsilon 0.01) against a cached Mitsuba reference, and those of path tracing
+given the same number of path samples and the same time.
+
+Two measurements explain the outcome (issue 13, item 5):
+
+* compressibility: the energy share of the ``K`` largest lattice coefficients
+  of the fully sampled signal at a smaller grid, at several samples per cell
+  (noise flattens the spectrum);
+* noise against sample count: the SFT at more samples per lattice point.
+
+Output folder: ``table_6_1.md`` (thesis numbers beside ours), ``table_6_1.csv``,
+``compressibility.md``, ``figure_6_1.png`` (reference, SFT, PT at equal
+samples), ``images/`` (EXR/PNG/npy), ``records/`` (one JSON per run: a rerun
+resumes), ``table61.json`` (configuration, seeds, versions, git revision).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..checks import check_integer, check_positive_finite
+from ..images import reference_exposure, write_png
+from ..methods.base import Budget, ComparisonContext
+from ..methods.registry import get_method
+from ..methods.sft_reconstruction import reconstruct
+from ..provenance import atomic_save_npy, environment_record, read_json, write_json
+from ..recovery.path_space import largest_energy_fraction
+from ..rendering import mitsuba_backend
+from ..rendering.layout import path_layout
+from ..rendering.scenes import get_scene
+from .compare import RELMSE_EPSILON, quality
+
+#: Thesis Table 6.1 (K = 65,536 of N = 6.5536e8, 100x100x4^8 path space): alpha -> counts.
+THESIS_TABLE_6_1 = {
+    4: {"support": 553647600, "magnitude": 163577700, "total": 717225300, "spp": 71722},
+    16: {"support": 1711275624, "magnitude": 654311268, "total": 2365586892, "spp": 236558},
+    32: {"support": 3019898520, "magnitude": 1308622692, "total": 4328521212, "spp": 432852},
+}
+THESIS_SHAPE = (100, 100) + (4,) * 8
+RECORDS = "records"
+IMAGES = "images"
+
+
+@dataclass(frozen=True)
+class Table61Config:
+    """What ``sparselt table61`` runs (see the module docstring)."""
+
+    scene: str
+    shape: tuple = THESIS_SHAPE
+    kind: str = "path"
+    alphas: tuple = (4.0, 16.0, 32.0)
+    spp: int = 1
+    noise_spps: tuple = (4,)
+    sparsity: int | None = None
+    snr: float = 10.0
+    seed: int = 1
+    reference_spp: int = 1024
+    max_depth: int = 3
+    compressibility_shape: tuple | None = None
+    compressibility_spps: tuple = (1, 16, 64)
+    variant: str = "llvm_ad_rgb"
+
+    def record(self):
+        return {key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()}
+
+
+def validate(config):
+    """Every check that needs no renderer; ValueError/TypeError naming the bad value."""
+    if config.kind not in ("path", "path-indirect", "dof", "indirect"):
+        raise ValueError(f"table61 evaluates kinds path, path-indirect, dof, indirect; got {config.kind!r}")
+    if len(config.shape) < 2:
+        raise ValueError(f"shape {tuple(config.shape)} needs the two image-plane axes")
+    for size in config.shape:
+        check_integer("every shape entry", size, 1)
+    size = math.prod(config.shape)
+    if size >= 2**31:
+        raise ValueError(f"shape {tuple(config.shape)} has {size} cells; the SFT supports at most 2**31 - 1")
+    if not config.alphas:
+        raise ValueError("give at least one alpha")
+    for alpha in config.alphas:
+        check_positive_finite(alpha, "alpha")
+        if alpha < 1:
+            raise ValueError(f"alpha must be at least 1 (B = alpha K buckets), got {alpha}")
+    for spp in (config.spp,) + tuple(config.noise_spps):
+        check_integer("samples per lattice point", spp, 1, 2**16 - 1)
+    sparsity = config.sparsity or max(1, round(size * 1e-4))
+    check_integer("sparsity (K)", sparsity, 1, size // 2)
+    check_integer("reference spp", config.reference_spp, 1)
+    check_integer("seed", config.seed, 0, 2**32 - 2)
+    if config.compressibility_shape is not None:
+        if len(config.compressibility_shape) != len(config.shape):
+            raise ValueError(f"compressibility shape {config.compressibility_shape} needs {len(config.shape)} axes")
+        for size in config.compressibility_shape:
+            check_integer("every compressibility shape entry", size, 1)
+    return sparsity
+
+
+def _default_compressibility_shape(shape):
+    """A grid the machine samples fully in seconds: the image plane at a quarter, the other axes halved."""
+    return tuple(max(1, size // 4) for size in shape[:2]) + tuple(max(1, size // 2) for size in shape[2:])
+
+
+def run_table61(config, out, *, progress=True):
+    """Run the experiment into folder ``out`` (resuming finished runs); return the rows.
+
+    Raises
+    ------
+    ValueError
+        A kind or shape the oracle cannot evaluate, samples per point <= 0,
+        alpha < 1, K larger than the grid allows: before any sampling.
+    """
+    from ..rendering.baseline import cached_reference
+
+    sparsity = validate(config)
+    say = print if progress else (lambda *arguments, **options: None)
+    out = os.fspath(out)
+    os.makedirs(os.path.join(out, RECORDS), exist_ok=True)
+    os.makedirs(os.path.join(out, IMAGES), exist_ok=True)
+    spec = get_scene(config.scene)
+    resolution = tuple(config.shape[:2])
+    scene = mitsuba_backend.MitsubaScene(spec, resolution, variant=config.variant)
+    layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens, hide_emitters=spec.hide_emitters)
+    if len(layout.axes) != len(config.shape):
+        raise ValueError(f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max depth "
+                         f"{config.max_depth} has {len(layout.axes)}: {', '.join(layout.axes)}")
+    options = {"sparsity": sparsity, "sft_snr": config.snr}
+    write_json(os.path.join(out, "table61.json"), {"config": config.record(), "sparsity": sparsity,
+                                                   "relmse_epsilon": RELMSE_EPSILON, "provenance": environment_record()})
+    reference, reference_record = cached_reference(scene, config.kind, spp=config.reference_spp,
+                                                   max_depth=config.max_depth, seed=0, progress=progress)
+    exposure = reference_exposure(reference)
+    _save(out, "reference", reference, exposure)
+    pt = get_method("pt")
+    base = ComparisonContext(scene=scene, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
+                             resolution=resolution, max_depth=config.max_depth, options=options)
+    pt.warm_up(base)
+    pixels = resolution[0] * resolution[1]
+    pt_rate = _pt_rate(pt, base, pixels, config.seed)
+
+    runs = [(alpha, config.spp) for alpha in config.alphas]
+    runs += [(config.alphas[0], spp) for spp in config.noise_spps if spp != config.spp]
+    rows = []
+    for alpha, spp in runs:
+        name = f"alpha{alpha:g}_spp{spp}"
+        path = os.path.join(out, RECORDS, name + ".json")
+        if os.path.isfile(path):
+            rows.append(read_json(path))
+            say(f"table61: {name} already done")
+            continue
+        say(f"table61: SFT alpha {alpha:g}, {spp} path samples per lattice point, K = {sparsity} of "
+            f"N = {math.prod(config.shape)}")
+        context = ComparisonContext(scene=scene, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
+                                    resolution=resolution, max_depth=config.max_depth,
+                                    options=dict(options, alpha=alpha))
+        start = time.perf_counter()
+        result = reconstruct(context, spp, config.seed)
+        image = result.image()
+        seconds = time.perf_counter() - start
+        equal_samples_spp = max(1, round(result.path_samples / pixels))
+        equal_time_spp = max(1, int(seconds * pt_rate / pixels))
+        pt_samples = pt.run(base, Budget(spp=min(equal_samples_spp, 2**16 - 1), seed=config.seed)).image
+        pt_time = pt.run(base, Budget(spp=min(equal_time_spp, 2**16 - 1), seed=config.seed)).image
+        row = {
+            "alpha": alpha, "samples_per_point": spp, "sparsity": sparsity, "cells": math.prod(config.shape),
+            "support_samples": result.support_samples, "magnitude_samples": result.magnitude_samples,
+            "total_samples": result.path_samples, "samples_per_pixel": result.path_samples / pixels,
+            "lattice_points": result.cells, "fraction_of_signal": result.cells / math.prod(config.shape),
+            "seconds": seconds, "seconds_sampling": result.seconds["sampling"],
+            "seconds_reconstruction": result.seconds["reconstruction"],
+            "stop_reasons": [r.stop_reason for r in result.results],
+            "coefficients": [int(s.indices.size) for s in result.spectra],
+            "sft": quality(image, reference), "pt_equal_samples_spp": equal_samples_spp,
+            "pt_equal_samples": quality(pt_samples, reference), "pt_equal_time_spp": equal_time_spp,
+            "pt_equal_time": quality(pt_time, reference),
+        }
+        _save(out, f"sft_{name}", image, exposure)
+        _save(out, f"pt_equal_samples_{name}", pt_samples, exposure)
+        write_json(path, row)
+        rows.append(row)
+        say(f"table61: {name}: {result.path_samples} path samples ({row['samples_per_pixel']:.1f} per pixel), "
+            f"SFT relMSE {row['sft']['relmse']:.3g} vs PT {row['pt_equal_samples']['relmse']:.3g} at equal samples")
+
+    compressibility = _compressibility(config, spec, sparsity, out, say)
+    _write_table(out, config, rows, sparsity)
+    _write_compressibility(out, config, compressibility, sparsity)
+    _figure(out, rows, exposure)
+    return rows
+
+
+def _pt_rate(pt, context, pixels, seed):
+    """Path samples per second of ``pt`` here (warm), to give PT the SFT's time."""
+    spp = 16
+    result = pt.run(context, Budget(spp=spp, seed=seed))
+    return pixels * spp / max(result.total_seconds, 1e-9)
+
+
+def _compressibility(config, spec, sparsity, out, say):
+    from ..rendering.acquire import AcquisitionConfig, acquire_signal
+
+    path = os.path.join(out, RECORDS, "compressibility.json")
+    if os.path.isfile(path):
+        return read_json(path)
+    shape = tuple(config.compressibility_shape or _default_compressibility_shape(config.shape))
+    size = math.prod(shape)
+    fraction = sparsity / math.prod(config.shape)
+    rows = []
+    for spp in config.compressibility_spps:
+        signal = acquire_signal(AcquisitionConfig(scene=config.scene, kind=config.kind, shape=shape, spp=spp,
+                                                  seed=config.seed, max_depth=config.max_depth, variant=config.variant),
+                                progress=False, scene_spec=spec)
+        data = np.asarray(signal.data, dtype=np.float64).mean(axis=-1)  # RGB mean
+        row = {"spp": spp, "shape": list(shape)}
+        for label, share in (("K/N", fraction), ("10 K/N", 10 * fraction), ("1%", 0.01), ("10%", 0.1)):
+            count = max(1, round(share * size))
+            row[label] = {"coefficients": count, "energy": largest_energy_fraction(data, count)}
+        rows.append(row)
+        say(f"table61: compressibility at {shape}, {spp} spp: K/N keeps {row['K/N']['energy']:.1%} of the energy")
+    record = {"shape": list(shape), "rows": rows}
+    write_json(path, record)
+    return record
+
+
+def _write_table(out, config, rows, sparsity):
+    header = ("| alpha | spp/point | support detection | magnitude estimation | total samples | samples per pixel "
+              "| lattice points / N | thesis total (spp) | SFT SSIM | SFT relMSE | PT same samples SSIM | "
+              "PT same samples relMSE | PT same time relMSE | seconds |")
+    lines = [f"# Table 6.1: Sparse Fourier Transform sampling requirements, {config.scene} ({config.kind}, "
+             f"grid {'x'.join(map(str, config.shape))}, K = {sparsity})", "",
+             f"Thesis: 100x100x4^8 = 6.5536e8 cells, K = 65,536; relMSE epsilon {RELMSE_EPSILON}.", "",
+             header, "|" + "---|" * 14]
+    csv_lines = ["alpha,samples_per_point,support_samples,magnitude_samples,total_samples,samples_per_pixel,"
+                 "lattice_fraction,sft_ssim,sft_relmse,pt_equal_samples_ssim,pt_equal_samples_relmse,"
+                 "pt_equal_time_relmse,seconds,thesis_total,thesis_samples_per_pixel"]
+    for row in rows:
+        thesis = THESIS_TABLE_6_1.get(int(row["alpha"])) if float(row["alpha"]).is_integer() else None
+        thesis_text = f"{thesis['total']:.3g} ({thesis['spp']})" if thesis else "-"
+        lines.append(
+            f"| {row['alpha']:g} | {row['samples_per_point']} | {row['support_samples']:,} | {row['magnitude_samples']:,} "
+            f"| {row['total_samples']:,} | {row['samples_per_pixel']:.1f} | {row['fraction_of_signal']:.3f} | {thesis_text} "
+            f"| {row['sft']['ssim']:.3f} | {row['sft']['relmse']:.3g} | {row['pt_equal_samples']['ssim']:.3f} "
+            f"| {row['pt_equal_samples']['relmse']:.3g} | {row['pt_equal_time']['relmse']:.3g} | {row['seconds']:.1f} |")
+        csv_lines.append(",".join(str(value) for value in (
+            row["alpha"], row["samples_per_point"], row["support_samples"], row["magnitude_samples"],
+            row["total_samples"], row["samples_per_pixel"], row["fraction_of_signal"], row["sft"]["ssim"],
+            row["sft"]["relmse"], row["pt_equal_samples"]["ssim"], row["pt_equal_samples"]["relmse"],
+            row["pt_equal_time"]["relmse"], row["seconds"], thesis["total"] if thesis else "",
+            thesis["spp"] if thesis else "")))
+    from ..provenance import atomic_write_bytes
+
+    atomic_write_bytes(os.path.join(out, "table_6_1.md"), ("\n".join(lines) + "\n").encode())
+    atomic_write_bytes(os.path.join(out, "table_6_1.csv"), ("\n".join(csv_lines) + "\n").encode())
+
+
+def _write_compressibility(out, config, record, sparsity):
+    from ..provenance import atomic_write_bytes
+
+    labels = ("K/N", "10 K/N", "1%", "10%")
+    lines = [f"# How compressible the rendered signal is ({config.scene}, {config.kind}, fully sampled at "
+             f"{'x'.join(map(str, record['shape']))})", "",
+             "Share of the energy (mean removed) in the largest lattice Fourier coefficients; K/N is the "
+             f"table's sparsity {sparsity} / {math.prod(config.shape)}.", "",
+             "| samples per cell | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
+    for row in record["rows"]:
+        lines.append(f"| {row['spp']} | " + " | ".join(
+            f"{row[label]['energy']:.1%} ({row[label]['coefficients']})" for label in labels) + " |")
+    atomic_write_bytes(os.path.join(out, "compressibility.md"), ("\n".join(lines) + "\n").encode())
+
+
+def _save(out, name, image, exposure):
+    atomic_save_npy(os.path.join(out, IMAGES, name + ".npy"), image.astype(np.float32))
+    write_png(os.path.join(out, IMAGES, name + ".png"), image, exposure=exposure)
+    mitsuba_backend.write_exr(os.path.join(out, IMAGES, name + ".exr"), image)
+
+
+def _figure(out, rows, exposure):
+    """Figures 6.1/6.2: reference, the SFT image at the lowest alpha, PT at the same samples."""
+    from ..images import srgb_tonemap
+    from .compare_report import _pyplot
+
+    if not rows:
+        return
+    row = rows[0]
+    name = f"alpha{row['alpha']:g}_spp{row['samples_per_point']}"
+    pictures = [("reference", "reference"),
+                (f"sft_{name}", f"SFT, alpha {row['alpha']:g}: {row['total_samples']:,} samples, "
+                                f"relMSE {row['sft']['relmse']:.3g}"),
+                (f"pt_equal_samples_{name}", f"PT, same samples ({row['pt_equal_samples_spp']} spp): "
+                                             f"relMSE {row['pt_equal_samples']['relmse']:.3g}")]
+    pyplot = _pyplot()
+    figure, axes = pyplot.subplots(1, 3, figsize=(12, 4.4))
+    for axis, (file, title) in zip(axes, pictures):
+        axis.imshow(srgb_tonemap(np.load(os.path.join(out, IMAGES, file + ".npy")), exposure))
+        axis.set_title(title, fontsize=9)
+        axis.axis("off")
+    figure.tight_layout()
+    figure.savefig(os.path.join(out, "figure_6_1.png"), dpi=110)
+    pyplot.close(figure)

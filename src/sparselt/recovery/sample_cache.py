@@ -1,0 +1,67 @@
+"""Values read at distinct indices of a long signal, looked up in O(1): the SFT's sample caches.
+
+The Sparse Fourier Transform reads a few percent of a signal of up to 2^31
+entries, one hash at a time, and must never read an index twice (the oracle is
+a renderer: every read costs path samples). :class:`IndexedValues` keeps the
+values in the order they were read and an ``int32`` slot per signal index
+(``-1`` = not read), so looking up and adding ``m`` indices costs ``O(m)``
+however many were read before.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class IndexedValues:
+    """Values at distinct indices of ``[0, size)``.
+
+    Parameters
+    ----------
+    size : int
+        Signal length (below ``2**31``).
+    value_shape : tuple of int
+        Shape of one value (``()`` for scalars, ``(3,)`` for RGB).
+    dtype : numpy dtype
+        Type of the values.
+    """
+
+    def __init__(self, size, value_shape=(), dtype=np.complex128):
+        self.size = int(size)
+        self._slots = np.full(self.size, -1, dtype=np.int32)
+        self._values = np.zeros((max(16, 0),) + tuple(value_shape), dtype=dtype)
+        self._indices = np.zeros(16, dtype=np.int64)
+        self.count = 0
+
+    @property
+    def values(self):
+        """Every value read, in reading order."""
+        return self._values[:self.count]
+
+    @property
+    def indices(self):
+        """Every index read, in reading order."""
+        return self._indices[:self.count]
+
+    def missing(self, indices):
+        """The distinct indices among ``indices`` not read yet, sorted."""
+        indices = np.asarray(indices, dtype=np.int64)
+        return np.unique(indices[self._slots[indices] < 0])
+
+    def add(self, indices, values):
+        """Record ``values`` at new, distinct ``indices``."""
+        indices = np.asarray(indices, dtype=np.int64)
+        needed = self.count + indices.size
+        if needed > self._indices.size:
+            capacity = max(needed, 2 * self._indices.size)
+            self._values = np.concatenate([self._values, np.zeros((capacity - self._values.shape[0],)
+                                                                  + self._values.shape[1:], self._values.dtype)])
+            self._indices = np.concatenate([self._indices, np.zeros(capacity - self._indices.size, np.int64)])
+        self._values[self.count:needed] = values
+        self._indices[self.count:needed] = indices
+        self._slots[indices] = np.arange(self.count, needed, dtype=np.int32)
+        self.count = needed
+
+    def get(self, indices):
+        """Values at ``indices``, all of which were read."""
+        return self._values[self._slots[np.asarray(indices, dtype=np.int64)]]
