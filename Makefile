@@ -32,6 +32,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/filters.py
 	$(BIN)/python benchmarks/guided_throughput.py
 	$(BIN)/python benchmarks/distributed_sampling.py
+	$(BIN)/python benchmarks/sft_oracle.py
 	$(BIN)/sparselt bench integrate --out out/bench-integrate --overwrite
 
 clean:

@@ -84,6 +84,8 @@ def validate(config):
         raise ValueError(f"shape {tuple(config.shape)} needs the two image-plane axes")
     for size in config.shape:
         check_integer("every shape entry", size, 1)
+    if min(config.shape[:2]) < 11:
+        raise ValueError(f"the image plane {tuple(config.shape[:2])} must be at least 11x11 pixels (the SSIM window)")
     size = math.prod(config.shape)
     if size >= 2**31:
         raise ValueError(f"shape {tuple(config.shape)} has {size} cells; the SFT supports at most 2**31 - 1")

@@ -239,3 +239,50 @@ class GuidedBilateral(_GuidedMethod):
                 values = np.where(filtered[..., 1] > 0, filtered[..., 0] / filtered[..., 1], 0.0)
         return values, {"map": "bilateral", "gamma": gamma, "sparsity": sparsity, "sigma_range": sigma_range,
                         "radius": list(BILATERAL_RADIUS), "cosamp_iterations": result.iterations}
+
+
+@register
+class GuidedSft(_GuidedMethod):
+    """Guided by the SFT reconstruction of the rendered signal over the map grid (thesis 6.2.1)."""
+
+    name = "guided-sft"
+    kinds = ("dof", "indirect", "path")
+    description = ("guided by the Sparse Fourier Transform reconstruction over the map grid (thesis 6.2; "
+                   "--map-spp path samples per lattice point, K = N/10^4, --alpha), defensive mixture; "
+                   "the SFT's samples and time are counted")
+
+    def warm_up(self, context):
+        super().warm_up(context)
+        from .sft_reconstruction import reconstruct
+
+        small = dict(context.options, sparsity=1)
+        reconstruct(_replace_options(context, small), 1, WARM_UP_SEED)
+
+    def run(self, context, budget):
+        from .sft_reconstruction import reconstruct, sft_options
+
+        map_spp, defensive, mode = guiding_options(context)
+        timer = PhaseTimer()
+        result = reconstruct(context, map_spp, budget.seed ^ 0x5A5A5A5A)
+        timer.seconds["sampling"] += result.seconds["sampling"]
+        timer.seconds["reconstruction"] += result.seconds["reconstruction"]
+        with timer("reconstruction"):
+            values = luminance(result.signal()).astype(np.float64)  # eq. 6.3: pdf proportional to R, negatives clamped
+        with timer("other"):
+            importance = ImportanceMap(values, defensive=defensive, clamp_negative=True)
+        with timer("sampling"):
+            image, nonfinite = render_with_map(context, importance, budget, mode)
+        width, height = context.resolution
+        sparsity, alpha, snr = sft_options(context)
+        details = {"map": "sft", "map_spp": map_spp, "mode": mode, "defensive": defensive, "sparsity": sparsity,
+                   "alpha": alpha, "snr_db": snr, "map_samples": result.path_samples,
+                   "support_samples": result.support_samples, "magnitude_samples": result.magnitude_samples,
+                   "nonfinite_samples": nonfinite + result.nonfinite}
+        return MethodResult(image=image, seconds=timer.seconds,
+                            path_samples=result.path_samples + width * height * budget.spp, details=details)
+
+
+def _replace_options(context, options):
+    from dataclasses import replace
+
+    return replace(context, options=options)
