@@ -12,11 +12,24 @@ from ..images import reference_exposure, save_figure, srgb_tonemap
 from ..provenance import atomic_write_bytes
 
 # Thesis Tables 8.1 (Dragons) and 8.2 (San Miguel): SPP -> (total, sampling, CoSaMP, integration) seconds.
+def _thesis_rows(table, columns):
+    """``{first-column value: tuple of the other columns}`` of a thesis table (:mod:`sparselt.thesis_numbers`)."""
+    from ..thesis_numbers import thesis_table, thesis_value
+
+    rows = {}
+    for row in thesis_table(table)["rows"]:
+        label = row["label"]
+        key = int(label.split("x")[0]) if "x" in label else int(label)
+        values = (thesis_value(table, label, column) for column in columns)
+        rows[key] = tuple(int(value) if float(value).is_integer() else value for value in values)
+    return rows
+
+
+_TIMES = ("Total", "Sampling", "CoSaMP", "Integration")
+#: Thesis Tables 8.1/8.2 (CoSaMP execution times, depth of field): scene -> (table, thesis scene, {spp: times}).
 THESIS_TABLES = {
-    "dof-sculptures": ("8.1", "Dragons", {40: (16.7, 1.89, 14.6, 0.182), 81: (22.4, 4.06, 18.1, 0.195),
-                                          163: (29.0, 8.13, 20.7, 0.183), 327: (51.6, 16.0, 35.3, 0.182)}),
-    "courtyard": ("8.2", "San Miguel", {40: (26.93, 12.49, 14.43, 0.012), 81: (38.59, 27.11, 11.30, 0.19),
-                                        163: (63.21, 49.50, 13.53, 0.19)}),
+    "dof-sculptures": ("8.1", "Dragons", _thesis_rows("8.1", _TIMES)),
+    "courtyard": ("8.2", "San Miguel", _thesis_rows("8.2", _TIMES)),
 }
 
 
@@ -281,11 +294,15 @@ def plot_crop_grid(path, matched, target, pictures):
 
 
 # Thesis Tables 6.2 (Cornell Box) and 6.3 (San Miguel): image size -> (spp, SFT importance sampling s, PT s).
+_GUIDING = ("Samples per Pixel", "SFT Importance Sampling Time (s)")
+_CORNELL_GUIDING = ("6.2", "Cornell Box", {size: values + pt for (size, values), pt in zip(
+    _thesis_rows("6.2", _GUIDING).items(), _thesis_rows("6.2", ("Path Tracing Time (s)",)).values())})
+#: Thesis Tables 6.2/6.3 (SFT importance sampling): scene -> (table, thesis scene, {image size: (spp, SFT s, PT s)}).
 THESIS_GUIDING_TABLES = {
-    "cornell-box": ("6.2", "Cornell Box", {1000: (489, 238, 199), 2000: (197, 387, 304), 4000: (124, 930, 817)}),
-    "cornell-caustics": ("6.2", "Cornell Box", {1000: (489, 238, 199), 2000: (197, 387, 304),
-                                                 4000: (124, 930, 817)}),
-    "courtyard": ("6.3", "San Miguel", {1000: (489, 1439, 1203), 2000: (197, 2216, 1969), 4000: (124, 5316, 5172)}),
+    "cornell-box": _CORNELL_GUIDING,
+    "cornell-caustics": _CORNELL_GUIDING,
+    "courtyard": ("6.3", "San Miguel", {size: values + pt for (size, values), pt in zip(
+        _thesis_rows("6.3", _GUIDING).items(), _thesis_rows("6.3", ("Path Tracing Time",)).values())}),
 }
 
 

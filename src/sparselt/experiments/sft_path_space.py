@@ -42,12 +42,16 @@ from ..rendering.layout import path_layout
 from ..rendering.scenes import get_scene
 from .compare import RELMSE_EPSILON, quality
 
-#: Thesis Table 6.1 (K = 65,536 of N = 6.5536e8, 100x100x4^8 path space): alpha -> counts.
-THESIS_TABLE_6_1 = {
-    4: {"support": 553647600, "magnitude": 163577700, "total": 717225300, "spp": 71722},
-    16: {"support": 1711275624, "magnitude": 654311268, "total": 2365586892, "spp": 236558},
-    32: {"support": 3019898520, "magnitude": 1308622692, "total": 4328521212, "spp": 432852},
-}
+def thesis_table_6_1():
+    """Thesis Table 6.1 (K = 65,536 of N = 6.5536e8, 100x100x4^8 path space): alpha -> sample counts."""
+    from ..thesis_numbers import thesis_value
+
+    columns = {"support": "Support Detection", "magnitude": "Magnitude Estimation", "total": "Total Samples",
+               "spp": "Samples per Pixel"}
+    return {alpha: {key: int(thesis_value("6.1", str(alpha), column)) for key, column in columns.items()}
+            for alpha in (4, 16, 32)}
+
+
 THESIS_SHAPE = (100, 100) + (4,) * 8
 RECORDS = "records"
 IMAGES = "images"
@@ -235,6 +239,7 @@ def _compressibility(config, spec, sparsity, out, say):
 
 
 def _write_table(out, config, rows, sparsity):
+    thesis_rows = thesis_table_6_1()
     header = ("| alpha | spp/point | support detection | magnitude estimation | total samples | samples per pixel "
               "| lattice points / N | thesis total (spp) | SFT SSIM | SFT relMSE | PT same samples SSIM | "
               "PT same samples relMSE | PT same time relMSE | seconds |")
@@ -246,7 +251,7 @@ def _write_table(out, config, rows, sparsity):
                  "lattice_fraction,sft_ssim,sft_relmse,pt_equal_samples_ssim,pt_equal_samples_relmse,"
                  "pt_equal_time_relmse,seconds,thesis_total,thesis_samples_per_pixel"]
     for row in rows:
-        thesis = THESIS_TABLE_6_1.get(int(row["alpha"])) if float(row["alpha"]).is_integer() else None
+        thesis = thesis_rows.get(int(row["alpha"])) if float(row["alpha"]).is_integer() else None
         thesis_text = f"{thesis['total']:.3g} ({thesis['spp']})" if thesis else "-"
         lines.append(
             f"| {row['alpha']:g} | {row['samples_per_point']} | {row['support_samples']:,} | {row['magnitude_samples']:,} "
