@@ -44,6 +44,7 @@ import time
 import numpy as np
 
 from sparselt.fourier import fft
+from sparselt.fourier.sparse import random_sparse_fourier
 from sparselt.measurement import best_time
 from sparselt.provenance import package_versions
 from sparselt.recovery import sft, sft_lattice
@@ -57,9 +58,10 @@ THESIS_SIZE = 655360000
 def make_signal(n, sparsity, snr, seed):
     """Support and signal of a K-sparse spectrum with unit coefficients, plus noise at ``snr`` dB."""
     rng = np.random.default_rng(seed)
-    support = np.sort(rng.choice(n, sparsity, replace=False))
+    representation = random_sparse_fourier((n,), sparsity, rng, values="unit")
+    support = np.sort(representation.indices)
     spectrum = np.zeros(n, dtype=np.complex128)
-    spectrum[support] = np.exp(2j * np.pi * rng.random(sparsity))
+    spectrum[representation.indices] = representation.values
     signal = fft.ifftn(spectrum)
     del spectrum
     if snr is not None:  # noise energy = signal energy / snr, drawn in chunks to keep memory flat

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from sparselt.fourier import fft
+from sparselt.fourier.sparse import random_sparse_fourier
 from sparselt.recovery.lattice import (
     grid_to_lattice,
     lattice_generator,
@@ -18,21 +19,13 @@ from sparselt.recovery.sft_filters import make_filter
 
 
 def sparse_signal(n, sparsity, seed, *, real=False, unit=False):
-    """A K-sparse spectrum (numpy.fft convention) and its signal."""
-    rng = np.random.default_rng(seed)
+    """A K-sparse spectrum (numpy.fft convention) and its signal, from the one generator."""
+    representation = random_sparse_fourier((n,), sparsity, np.random.default_rng(seed), real=real,
+                                           values="unit" if unit else "normal")
     spectrum = np.zeros(n, dtype=np.complex128)
-    if real:
-        half = rng.choice(np.arange(1, (n + 1) // 2), sparsity // 2, replace=False)
-        values = rng.standard_normal(half.size) + 1j * rng.standard_normal(half.size)
-        spectrum[half] = values
-        spectrum[(-half) % n] = np.conj(values)
-        return spectrum, fft.ifftn(spectrum).real
-    support = rng.choice(n, sparsity, replace=False)
-    if unit:
-        spectrum[support] = np.exp(2j * np.pi * rng.random(sparsity))
-    else:
-        spectrum[support] = rng.standard_normal(sparsity) + 1j * rng.standard_normal(sparsity)
-    return spectrum, fft.ifftn(spectrum)
+    spectrum[representation.indices] = representation.values
+    signal = fft.ifftn(spectrum)
+    return spectrum, signal.real if real else signal
 
 
 class CountingOracle:

@@ -253,9 +253,10 @@ def random_sparse_fourier(shape, count, rng, *, real=False, values="normal", dec
         partner map (``count // 2`` drawn, each with its conjugate partner), so
         the signal is real and has about ``count`` coefficients.
     rng : numpy.random.Generator
-    values : {'normal', 'uniform'}
-        Complex standard normal values, or real values uniform in ``[0, 1)``
-        (thesis 4.3's random signal).
+    values : {'normal', 'uniform', 'unit'}
+        Complex standard normal values, real values uniform in ``[0, 1)``
+        (thesis 4.3's random signal), or unit-modulus values of uniform phase
+        (the SFT's test signals).
     decay : float, optional
         Multiply the values by ``rank ** -decay`` in a random order: a
         compressible spectrum with power-law magnitudes.
@@ -271,8 +272,10 @@ def random_sparse_fourier(shape, count, rng, *, real=False, values="normal", dec
         coefficients = rng.random(value_shape).astype(np.complex128)
     elif values == "normal":
         coefficients = rng.standard_normal(value_shape) + 1j * rng.standard_normal(value_shape)
+    elif values == "unit":
+        coefficients = np.exp(2j * np.pi * rng.random(value_shape))
     else:
-        raise ValueError(f"values must be 'normal' or 'uniform', got {values!r}")
+        raise ValueError(f"values must be 'normal', 'uniform' or 'unit', got {values!r}")
     if decay is not None:
         scale = (np.arange(1, support.size + 1) ** -float(decay))[rng.permutation(support.size)]
         coefficients = coefficients * scale.reshape((-1,) + (1,) * len(channels))

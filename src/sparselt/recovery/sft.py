@@ -78,43 +78,76 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse
+import scipy.sparse.linalg
 
 from ..checks import check_integer
 from ..fourier import fft
 from ..fourier.sparse import SparseFourier
 from .result import RecoveryResult
+from . import sft_hashing as hashing
 from .sample_cache import IndexedValues
-from .sft_filters import Filter, choose_bins, divisors, make_filter, random_coprime
+from .sft_filters import choose_bins, divisors, make_filter, random_coprime
 
-LARGEST_SAMPLE = 1e150  # squares and sums of squares of the samples must stay finite in float64
 WINDOWS = ("chebyshev", "gaussian", "bspline")
 
-#: A bin is occupied when its energy exceeds this many times the noise level per bin.
-OCCUPANCY_FACTOR = 12.0
-#: Largest fraction of a bin's energy that one frequency may leave unexplained (singleton test) ...
-SINGLETON_RESIDUAL = 0.05
-#: ... plus this many noise levels over the bin's energy (the worst of several noisy shifts).
-SINGLETON_NOISE = 8.0
-#: With noise, later hashes keep enough bins for this signal-to-noise ratio per bin (``B >= K 30 / snr``).
-BIN_SNR = 30.0
-#: Smallest filter response at which a bin may report a frequency.
-MINIMUM_RESPONSE = 0.25
-#: Phase error per bin the location design tolerates from leakage alone (radians).
-LEAKAGE_PHASE_ERROR = 0.05
-#: Relative level below which differences are round-off (exactly sparse signals).
-RELATIVE_FLOOR = 1e-11
-#: Quantile of bin energies taken as the noise level (most bins hold no coefficient).
-NOISE_QUANTILE = 0.25
-#: Least squares drops bins whose residual exceeds this many times the median residual of their hash.
-OUTLIER_FACTOR = 10.0
-#: Relative residual at which the least-squares corrections stop (each round refines the last).
-CG_TOLERANCE = 1e-10
-#: Least-squares rounds after each detection hash (the final polish runs three).
-DETECTION_ROUNDS = 2
-#: Fewest bins a hash may have (the noise level comes from the lower quartile of its bins).
-MINIMUM_BINS = 4
-#: Later hashes keep at least this fraction of the first hash's bins (found values stay apart).
-BINS_FLOOR = 0.25
+
+@dataclass(frozen=True)
+class SparseFourierTuning:
+    """Every tuning constant of the Sparse Fourier Transform, in one place.
+
+    Attributes
+    ----------
+    occupancy_factor : float
+        A bin is occupied when its energy exceeds this many noise levels per bin.
+    singleton_residual : float
+        Largest fraction of a bin's energy one frequency may leave unexplained (singleton test) ...
+    singleton_noise : float
+        ... plus this many noise levels over the bin's energy (the worst of several noisy shifts).
+    bin_snr : float
+        With noise, later hashes keep enough bins for this SNR per bin (``B >= K bin_snr / snr``).
+    minimum_response : float
+        Smallest filter response at which a bin may report a frequency.
+    leakage_phase_error : float
+        Phase error per bin the location design tolerates from leakage alone (radians).
+    relative_floor : float
+        Relative level below which differences are round-off (exactly sparse signals).
+    noise_quantile : float
+        Quantile of bin energies taken as the noise level (most bins hold no coefficient).
+    outlier_factor : float
+        Least squares drops bins whose residual exceeds this many times the median residual of their hash.
+    cg_tolerance : float
+        Relative residual at which each least-squares correction stops (each round refines the last).
+    cg_iterations : int
+        Most conjugate-gradient iterations per least-squares round.
+    detection_rounds : int
+        Least-squares rounds after each detection hash (the final polish runs three).
+    minimum_bins : int
+        Fewest bins a hash may have (the noise level comes from the lower quartile of its bins).
+    bins_floor : float
+        Later hashes keep at least this fraction of the first hash's bins (found values stay apart).
+    largest_sample : float
+        Largest sample magnitude accepted: squares and sums of squares must stay finite in float64.
+    """
+
+    occupancy_factor: float = 12.0
+    singleton_residual: float = 0.05
+    singleton_noise: float = 8.0
+    bin_snr: float = 30.0
+    minimum_response: float = 0.25
+    leakage_phase_error: float = 0.05
+    relative_floor: float = 1e-11
+    noise_quantile: float = 0.25
+    outlier_factor: float = 10.0
+    cg_tolerance: float = 1e-10
+    cg_iterations: int = 100
+    detection_rounds: int = 2
+    minimum_bins: int = 4
+    bins_floor: float = 0.25
+    largest_sample: float = 1e150
+
+
+#: The tuning every call uses unless given another.
+TUNING = SparseFourierTuning()
 
 
 # ---------------------------------------------------------------------------
@@ -217,9 +250,10 @@ def _check_window(window):
 class _SampleCache:
     """Wraps the oracle: distinct indices are read once and counted per phase."""
 
-    def __init__(self, oracle, size):
+    def __init__(self, oracle, size, largest_sample=TUNING.largest_sample):
         self.oracle = oracle
         self.size = size
+        self.largest_sample = largest_sample
         self.store = IndexedValues(size, (), np.complex128)
         self.phase = "support"
         self.counts = {"support": 0, "magnitude": 0}
@@ -250,9 +284,9 @@ class _SampleCache:
             raise ValueError(f"the oracle returned {bad} NaN or infinite samples (first at index "
                              f"{int(indices[~np.isfinite(values)][0])}); samples must be finite")
         largest = float(np.abs(values).max(initial=0.0))
-        if largest > LARGEST_SAMPLE:
+        if largest > self.largest_sample:
             raise ValueError(f"the oracle returned a sample of magnitude {largest:.3g}; energies (squares) of values "
-                             f"above {LARGEST_SAMPLE:.0e} overflow float64: divide the signal by a scale and multiply "
+                             f"above {self.largest_sample:.0e} overflow float64: divide the signal by a scale and multiply "
                              "the result back")
         return values.astype(np.complex128, copy=False)
 
@@ -267,143 +301,14 @@ class _SampleCache:
 
 
 # ---------------------------------------------------------------------------
-# hashing
-
-
-def _windows(shifts, half_width):
-    """Merge the windows ``[s - h, s + h]``: the offsets to read and each window's start in them."""
-    starts = shifts - half_width
-    ends = shifts + half_width + 1
-    offsets, first = [], np.empty(shifts.size, dtype=np.int64)
-    total = 0
-    block_start, block_end = starts[0], ends[0]
-    members = [0]
-    for index in range(1, shifts.size):
-        if starts[index] <= block_end:
-            block_end = max(block_end, ends[index])
-            members.append(index)
-            continue
-        offsets.append(np.arange(block_start, block_end))
-        for member in members:
-            first[member] = total + starts[member] - block_start
-        total += block_end - block_start
-        block_start, block_end, members = starts[index], ends[index], [index]
-    offsets.append(np.arange(block_start, block_end))
-    for member in members:
-        first[member] = total + starts[member] - block_start
-    return np.concatenate(offsets), first
-
-
-def _window_cost(shifts, half_width):
-    return int(_windows(np.asarray(shifts, dtype=np.int64), half_width)[0].size)
-
-
-@dataclass
-class _Hash:
-    sigma: int
-    tau: int
-    filter: Filter
-    shifts: np.ndarray
-    bins: np.ndarray  # (S, B): bin values, in coefficient units
-
-
-def _hash_to_bins(cache, n, filt, sigma, tau, shifts):
-    """HashToBins (Algorithm 5) at every shift: ``(S, B)`` bins from the samples of one permutation."""
-    shifts = np.asarray(shifts, dtype=np.int64)
-    offsets, first = _windows(shifts, filt.half_width)
-    values = cache.read((sigma * offsets + tau) % n)
-    width, bins = filt.width, filt.bins
-    rows = values[first[:, None] + np.arange(width)[None, :]] * filt.taps
-    start = (-filt.half_width) % bins
-    padded = -(-(start + width) // bins) * bins
-    buffer = np.zeros((shifts.size, padded), dtype=np.complex128)
-    buffer[:, start:start + width] = rows
-    folded = buffer.reshape(shifts.size, padded // bins, bins).sum(axis=1)
-    return _Hash(sigma, tau, filt, shifts, fft.fftn(folded, axes=(1,)))
-
-
-def _response(n, hashed, frequencies):
-    """Where the frequencies land in a hash: bins ``(K, 2D+1)`` and weights ``(S, K, 2D+1)``.
-
-    ``hashed.bins[s, bins[k, i]] += X[f_k] * weights[s, k, i]`` is the exact
-    contribution of ``f_k`` (to the filter's ``leakage`` level); the centre
-    column ``i = D`` is the bin nearest ``f_k``.
-    """
-    filt = hashed.filter
-    frequencies = np.asarray(frequencies, dtype=np.int64)
-    permuted = (hashed.sigma * frequencies) % n
-    step = n // filt.bins
-    centre = (permuted + step // 2) // step
-    around = centre[:, None] + np.arange(-filt.neighbours, filt.neighbours + 1)[None, :]
-    offset = around * step - permuted[:, None]
-    table = filt.response(offset)
-    rotation = np.exp(2j * np.pi * ((frequencies * hashed.tau) % n) / n)
-    shift_phase = np.exp(2j * np.pi * ((permuted[None, :] * hashed.shifts[:, None]) % n) / n)
-    weights = (rotation[None, :] * shift_phase)[:, :, None] * table[None, :, :]
-    return around % filt.bins, weights
-
-
-def _model(n, hashed, frequencies, values):
-    """Bins of the hash that the coefficients ``values`` at ``frequencies`` would produce."""
-    bins_count = hashed.filter.bins
-    shifts = hashed.shifts.size
-    model = np.zeros((shifts, bins_count), dtype=np.complex128)
-    if len(frequencies) == 0:
-        return model
-    where, weights = _response(n, hashed, frequencies)
-    contributions = weights * values[None, :, None]
-    flat = (np.arange(shifts)[:, None, None] * bins_count + where[None, :, :]).ravel()
-    size = shifts * bins_count
-    model += (np.bincount(flat, contributions.real.ravel(), size)
-              + 1j * np.bincount(flat, contributions.imag.ravel(), size)).reshape(shifts, bins_count)
-    return model
-
-
-def _shift_schedule(n, bins, phase_error, ratio):
-    """Shifts ``0, s_1, s_1 r, ...``: the bin fixes ``p`` to ``+- n/B``, each shift refines it ``r`` times."""
-    shifts = [0]
-    shift = max(1, bins // 4)
-    target = min(n / 2, 3 * phase_error * n / math.pi)  # last estimate within 1/6 of an integer
-    while True:
-        shifts.append(shift)
-        if shift >= target:
-            break
-        shift = int(min(shift * ratio, max(math.ceil(target), 2 * shift)))
-    return np.array(shifts, dtype=np.int64)
-
-
-def _locate(n, hashed, residual, occupied):
-    """Frequencies of the occupied bins by phase shifts, with their values and a singleton test."""
-    filt = hashed.filter
-    step = n // filt.bins
-    u = residual[:, occupied]
-    estimate = occupied.astype(np.float64) * step  # bin centres: p to +- n/B
-    reference = u[0]
-    for level in range(1, hashed.shifts.size):
-        shift = float(hashed.shifts[level])
-        fraction = np.angle(u[level] * np.conj(reference)) / (2 * np.pi)
-        wraps = np.round(estimate * shift / n - fraction)
-        estimate = (fraction + wraps) * n / shift
-    permuted = np.round(estimate).astype(np.int64) % n
-    phases = np.exp(2j * np.pi * ((permuted[None, :] * hashed.shifts[:, None]) % n) / n)
-    amplitude = np.mean(u * np.conj(phases), axis=0)
-    misfit = np.max(np.abs(u - amplitude[None, :] * phases) ** 2, axis=0)
-    misfit /= np.maximum(np.mean(np.abs(u) ** 2, axis=0), 1e-300)
-    offset = occupied * step - permuted
-    offset = (offset + n // 2) % n - n // 2
-    response = filt.response(offset)
-    return permuted, amplitude, misfit, response
-
-
-# ---------------------------------------------------------------------------
 # the transform
 
 
-def _noise_level(energy):
+def _noise_level(energy, quantile=TUNING.noise_quantile):
     """Noise energy per bin from the lower quantile of bin energies (exponential law)."""
     if energy.size < 4:
         return float(np.min(energy))
-    return float(np.quantile(energy, NOISE_QUANTILE) / -math.log(1 - NOISE_QUANTILE))
+    return float(np.quantile(energy, quantile) / -math.log(1 - quantile))
 
 
 def _merge(frequencies, values, new_frequencies, new_values):
@@ -420,38 +325,26 @@ def _merge(frequencies, values, new_frequencies, new_values):
     return frequencies, values, int(np.count_nonzero(~present))
 
 
-def _conjugate_gradient(matrix, right, diagonal, iterations=100):
-    """Solve the Hermitian positive definite ``matrix x = right`` by Jacobi-preconditioned CG."""
-    solution = np.zeros_like(right)
-    residual = right.copy()
-    target = CG_TOLERANCE * np.linalg.norm(right)
-    if target == 0:
-        return solution
-    preconditioned = residual / diagonal
-    direction = preconditioned.copy()
-    product = np.vdot(residual, preconditioned).real
-    for _ in range(iterations):
-        image = matrix @ direction
-        step = product / np.vdot(direction, image).real
-        solution += step * direction
-        residual -= step * image
-        if np.linalg.norm(residual) <= target:
-            break
-        preconditioned = residual / diagonal
-        previous, product = product, np.vdot(residual, preconditioned).real
-        direction = preconditioned + (product / previous) * direction
+def _conjugate_gradient(matrix, right, diagonal, tuning):
+    """Solve the Hermitian positive definite ``matrix x = right``: SciPy's CG with a Jacobi preconditioner."""
+    if not np.any(right):
+        return np.zeros_like(right)
+    preconditioner = scipy.sparse.linalg.LinearOperator(matrix.shape, matvec=lambda vector: vector / diagonal,
+                                                        dtype=right.dtype)
+    solution, _ = scipy.sparse.linalg.cg(matrix, right, rtol=tuning.cg_tolerance, atol=0.0,
+                                         maxiter=tuning.cg_iterations, M=preconditioner)
     return solution
 
 
-def _energy_statistics(energy, touched):
+def _energy_statistics(energy, touched, tuning):
     """Noise level (lower quartile) of a hash's bin energies and the median energy of its touched bins."""
     stride = max(1, energy.size // 65536)  # a regular subsample is plenty for two quantiles
-    level = _noise_level(energy[::stride])
+    level = _noise_level(energy[::stride], tuning.noise_quantile)
     spread = float(np.median(energy[touched][::stride])) if touched.any() else 0.0
     return level, spread
 
 
-def _polish(n, hashes, frequencies, values, scale, rounds=3, robust_start=False, variance=math.inf):
+def _polish(n, hashes, frequencies, values, scale, tuning, rounds=3, robust_start=False, variance=math.inf):
     """Robust least squares for the values over every bin read so far (no new samples).
 
     Every bin of every hash (at every shift) is a linear measurement of the
@@ -459,15 +352,15 @@ def _polish(n, hashes, frequencies, values, scale, rounds=3, robust_start=False,
     The first round solves the noise-weighted least squares over every bin
     the coefficients reach (unless ``robust_start``: the values are already
     robust estimates, such as medians); later rounds drop the bins whose residual the
-    model does not explain (more than ``OCCUPANCY_FACTOR`` noise levels and
-    ``OUTLIER_FACTOR`` times the median residual of the hash: bins holding a
+    model does not explain (more than ``occupancy_factor`` noise levels and
+    ``outlier_factor`` times the median residual of the hash: bins holding a
     coefficient not found yet). The normal equations are small and sparse
     (coefficients couple only through shared bins) and diagonally dominant;
     each hash's Gram matrix is formed once and the outlier bins' share is
     subtracted. ``variance`` caps the noise variance per sample. Returns the
     values and the noise level per bin of each hash.
     """
-    floor = (RELATIVE_FLOOR * scale) ** 2
+    floor = (tuning.relative_floor * scale) ** 2
     gains = np.array([hashed.filter.gain for hashed in hashes])
     sizes = [hashed.bins.size for hashed in hashes]
     starts = np.concatenate(([0], np.cumsum(sizes)))
@@ -476,11 +369,11 @@ def _polish(n, hashes, frequencies, values, scale, rounds=3, robust_start=False,
     spread = np.zeros(len(hashes))
     if frequencies.size == 0:
         for index in range(len(hashes)):
-            levels[index] = _noise_level(np.abs(raw[starts[index]:starts[index + 1]]) ** 2)
+            levels[index] = _noise_level(np.abs(raw[starts[index]:starts[index + 1]]) ** 2, tuning.noise_quantile)
         return values, gains * min(np.min(levels / gains), variance)
     blocks, grams = [], []
     for hashed, start in zip(hashes, starts):
-        where, weights = _response(n, hashed, frequencies)
+        where, weights = hashing.response(n, hashed, frequencies)
         bins_count = hashed.filter.bins
         row = np.arange(hashed.shifts.size)[:, None, None] * bins_count + where[None, :, :]
         nonzero = weights != 0
@@ -498,7 +391,7 @@ def _polish(n, hashes, frequencies, values, scale, rounds=3, robust_start=False,
         energy = np.abs(residual) ** 2
         for index in range(len(hashes)):
             segment = slice(starts[index], starts[index + 1])
-            levels[index], spread[index] = _energy_statistics(energy[segment], touched[segment])
+            levels[index], spread[index] = _energy_statistics(energy[segment], touched[segment], tuning)
         levels = gains * min(np.min(levels / gains), variance)  # noise variance: the least contaminated hash
         level = levels + floor
         row_weight = 1.0 / level[which]
@@ -507,7 +400,7 @@ def _polish(n, hashes, frequencies, values, scale, rounds=3, robust_start=False,
             normal = normal + grams[index] * (1.0 / level[index])
         selected = touched
         if round_ > 0 or robust_start:  # drop the bins that the model does not explain (coefficients not found yet)
-            limit = np.maximum(OCCUPANCY_FACTOR * level, OUTLIER_FACTOR * spread)[which]
+            limit = np.maximum(tuning.occupancy_factor * level, tuning.outlier_factor * spread)[which]
             selected = touched & (energy <= limit)
             outliers = np.flatnonzero(touched & ~selected)
             if outliers.size:
@@ -519,12 +412,12 @@ def _polish(n, hashes, frequencies, values, scale, rounds=3, robust_start=False,
         tiny = diagonal <= ridge  # coefficients with no bin left: keep their values
         if tiny.any():
             normal = normal + scipy.sparse.diags(np.where(tiny, ridge, 0.0))
-        values = values + _conjugate_gradient(normal.tocsr(), right, np.maximum(diagonal, ridge))
+        values = values + _conjugate_gradient(normal.tocsr(), right, np.maximum(diagonal, ridge), tuning)
     return values, levels
 
 
 def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width=None, leakage=None,
-        shift_ratio=None, magnitude_hashes=None, max_iterations=None, dense_fraction=0.5, seed=None):
+        shift_ratio=None, magnitude_hashes=None, max_iterations=None, dense_fraction=0.5, seed=None, tuning=TUNING):
     r"""Sparse Fourier Transform of a signal read through ``oracle`` (thesis 2.3, Algorithms 3-7).
 
     Parameters
@@ -619,132 +512,196 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
     Thesis 2.3 (Algorithms 3-7) and Table 6.1; Hassanieh, Indyk, Katabi and
     Price, SODA 2012 and STOC 2012; Indyk, Kapralov and Price, SODA 2014.
     """
-    n = _check_size(n)
-    sparsity = _check_sparsity(sparsity, n)
-    alpha = _check_positive("alpha", alpha, 1.0, "at least 1 (B = alpha K bins)")
-    snr = _check_snr(snr)
-    window = _check_window(window)
-    noisy = math.isfinite(snr)
-    snr_linear = 10 ** (snr / 10) if noisy else math.inf
-    width = 3.0 if width is None else _check_positive("width", width, 1.0, "at least 1 (taps per bin)")
-    if leakage is None:
-        leakage = 1e-10 if not noisy else float(np.clip(0.1 / math.sqrt(snr_linear * alpha * sparsity), 1e-10, 1e-3))
-    else:
-        leakage = _check_positive("leakage", leakage, 0.0, "in (0, 0.1)")
-        if not 0 < leakage < 0.1:
-            raise ValueError(f"leakage must be in (0, 0.1), got {leakage}")
-    phase_error = LEAKAGE_PHASE_ERROR
-    if noisy:
-        phase_error = max(phase_error, 1.5 / math.sqrt(max(snr_linear * alpha, 1.0)))
-    if shift_ratio is None:
-        shift_ratio = int(2 ** max(1, math.floor(math.log2(math.pi / (3 * phase_error)))))
-    shift_ratio = _check_integer("shift_ratio", shift_ratio, 2)
-    magnitude_hashes = _check_integer("magnitude_hashes", 0 if magnitude_hashes is None else magnitude_hashes, 0)
-    if max_iterations is None:
-        max_iterations = 12 + 2 * int(math.log2(sparsity + 1))
-    max_iterations = _check_integer("max_iterations", max_iterations, 1)
-    dense_fraction = _check_positive("dense_fraction", dense_fraction, 0.0, "in (0, 1]")
-    if not 0 < dense_fraction <= 1:
-        raise ValueError(f"dense_fraction must be in (0, 1], got {dense_fraction}")
-    if not callable(oracle):
-        raise ValueError(f"oracle must be callable as oracle(indices) -> values, got {type(oracle).__name__}")
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    parameters = dict(n=n, sparsity=sparsity, alpha=alpha, snr=snr, window=window, width=width, leakage=leakage,
-                      shift_ratio=shift_ratio, magnitude_hashes=magnitude_hashes, max_iterations=max_iterations,
-                      dense_fraction=dense_fraction, seed=seed if not isinstance(seed, np.random.Generator) else None)
+    solver = SparseFourierTransform(oracle, n, sparsity, alpha=alpha, snr=snr, window=window, width=width,
+                                    leakage=leakage, shift_ratio=shift_ratio, magnitude_hashes=magnitude_hashes,
+                                    max_iterations=max_iterations, dense_fraction=dense_fraction, seed=seed,
+                                    tuning=tuning)
+    return solver.run()
 
-    cache = _SampleCache(oracle, n)
-    timing = {"setup": 0.0, "support": 0.0, "magnitude": 0.0}
-    divisors_of_n = divisors(n)
-    filters = {}
 
-    def get_filter(bins):
-        if bins not in filters:
+class SparseFourierTransform:
+    """The Sparse Fourier Transform as a solver: :meth:`setup`, one :meth:`step` per detection hash, :meth:`finalize`.
+
+    Follows PyLops' solver classes (``optimization/cls_sparsity.py``): the
+    constructor validates, :meth:`setup` plans the first hash (or decides on
+    the dense fallback), each :meth:`step` reads one hash and adds what it
+    locates (Algorithms 4-6), :meth:`finalize` estimates the magnitudes
+    (Algorithm 7) and returns the result; :meth:`run` chains them, and
+    :func:`sft` is the function wrapper. Parameters are those of :func:`sft`.
+
+    Attributes
+    ----------
+    frequencies, values : ndarray
+        What has been found so far (sorted frequencies, their values).
+    iterations : int
+        Detection hashes read so far.
+    stop_reason : str or None
+        Why detection stopped, once it has.
+    """
+
+    def __init__(self, oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width=None, leakage=None,
+                 shift_ratio=None, magnitude_hashes=None, max_iterations=None, dense_fraction=0.5, seed=None,
+                 tuning=TUNING):
+        if not isinstance(tuning, SparseFourierTuning):
+            raise TypeError(f"tuning must be a SparseFourierTuning, got {type(tuning).__name__}")
+
+        n = _check_size(n)
+        sparsity = _check_sparsity(sparsity, n)
+        alpha = _check_positive("alpha", alpha, 1.0, "at least 1 (B = alpha K bins)")
+        snr = _check_snr(snr)
+        window = _check_window(window)
+        noisy = math.isfinite(snr)
+        snr_linear = 10 ** (snr / 10) if noisy else math.inf
+        width = 3.0 if width is None else _check_positive("width", width, 1.0, "at least 1 (taps per bin)")
+        if leakage is None:
+            leakage = 1e-10 if not noisy else float(np.clip(0.1 / math.sqrt(snr_linear * alpha * sparsity), 1e-10, 1e-3))
+        else:
+            leakage = _check_positive("leakage", leakage, 0.0, "in (0, 0.1)")
+            if not 0 < leakage < 0.1:
+                raise ValueError(f"leakage must be in (0, 0.1), got {leakage}")
+        phase_error = tuning.leakage_phase_error
+        if noisy:
+            phase_error = max(phase_error, 1.5 / math.sqrt(max(snr_linear * alpha, 1.0)))
+        if shift_ratio is None:
+            shift_ratio = int(2 ** max(1, math.floor(math.log2(math.pi / (3 * phase_error)))))
+        shift_ratio = _check_integer("shift_ratio", shift_ratio, 2)
+        magnitude_hashes = _check_integer("magnitude_hashes", 0 if magnitude_hashes is None else magnitude_hashes, 0)
+        if max_iterations is None:
+            max_iterations = 12 + 2 * int(math.log2(sparsity + 1))
+        max_iterations = _check_integer("max_iterations", max_iterations, 1)
+        dense_fraction = _check_positive("dense_fraction", dense_fraction, 0.0, "in (0, 1]")
+        if not 0 < dense_fraction <= 1:
+            raise ValueError(f"dense_fraction must be in (0, 1], got {dense_fraction}")
+        if not callable(oracle):
+            raise ValueError(f"oracle must be callable as oracle(indices) -> values, got {type(oracle).__name__}")
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        parameters = dict(n=n, sparsity=sparsity, alpha=alpha, snr=snr, window=window, width=width, leakage=leakage,
+                          shift_ratio=shift_ratio, magnitude_hashes=magnitude_hashes, max_iterations=max_iterations,
+                          dense_fraction=dense_fraction, seed=seed if not isinstance(seed, np.random.Generator) else None)
+        self.oracle, self.n, self.sparsity, self.alpha = oracle, n, sparsity, alpha
+        self.snr, self.snr_linear, self.noisy = snr, snr_linear, noisy
+        self.window, self.width, self.leakage = window, width, leakage
+        self.phase_error, self.shift_ratio = phase_error, shift_ratio
+        self.magnitude_hashes, self.max_iterations, self.dense_fraction = magnitude_hashes, max_iterations, dense_fraction
+        self.tuning, self.rng, self.parameters = tuning, rng, parameters
+        self.cache = _SampleCache(oracle, n, tuning.largest_sample)
+        self.timing = {"setup": 0.0, "support": 0.0, "magnitude": 0.0}
+        self.filters = {}
+        self.frequencies = np.zeros(0, dtype=np.int64)
+        self.values = np.zeros(0, dtype=np.complex128)
+        self.hashes, self.history = [], []
+        self.quiet, self.rejected, self.iterations = 0, 0, 0
+        self.scale = 0.0
+        self.variance = math.inf  # noise variance per sample, least over hashes
+        self.stop_reason = None
+        self.dense_needed = False
+
+    # -- bookkeeping ---------------------------------------------------------
+
+    def _filter(self, bins):
+        if bins not in self.filters:
             start = time.perf_counter()
-            filters[bins] = make_filter(n, bins, width, window, leakage, divisors_of_n)
-            timing["setup"] += time.perf_counter() - start
-        return filters[bins]
+            self.filters[bins] = make_filter(self.n, bins, self.width, self.window, self.leakage, self.divisors)
+            self.timing["setup"] += time.perf_counter() - start
+        return self.filters[bins]
 
-    def charge(phase, start, setup_before, oracle_before):
-        """Add the time since ``start`` to ``phase``, less filter setup and oracle time spent meanwhile."""
+    def _clock(self):
+        return time.perf_counter(), self.timing["setup"], self.cache.oracle_time
+
+    def _charge(self, phase, clock):
+        """Add the time since ``clock`` to ``phase``, less filter setup and oracle time spent meanwhile."""
+        start, setup_before, oracle_before = clock
         spent = time.perf_counter() - start
-        spent -= (timing["setup"] - setup_before) + (cache.oracle_time - oracle_before)
-        timing[phase] += max(spent, 0.0)
+        spent -= (self.timing["setup"] - setup_before) + (self.cache.oracle_time - oracle_before)
+        self.timing[phase] += max(spent, 0.0)
 
-    def finish(frequencies, values, history, iterations, reason, hashes, transforms=0):
-        if values.size > sparsity:
-            keep = np.sort(np.argsort(-np.abs(values), kind="stable")[:sparsity])
+    def _result(self, reason, transforms=0):
+        frequencies, values = self.frequencies, self.values
+        if values.size > self.sparsity:
+            keep = np.sort(np.argsort(-np.abs(values), kind="stable")[:self.sparsity])
             frequencies, values = frequencies[keep], values[keep]
         nonzero = values != 0
-        estimate = SparseFourier((n,), frequencies[nonzero], values[nonzero])
-        times = dict(timing)
-        times["oracle"] = cache.oracle_time
+        estimate = SparseFourier((self.n,), frequencies[nonzero], values[nonzero])
+        times = dict(self.timing)
+        times["oracle"] = self.cache.oracle_time
         return SparseFourierTransformResult(
-            estimate=estimate, residual_history=tuple(history), iterations=iterations, samples=cache.count,
-            time=times, stop_reason=reason, transforms=transforms, support_samples=cache.counts["support"],
-            magnitude_samples=cache.counts["magnitude"], bins=tuple(h.filter.bins for h in hashes),
-            parameters=parameters)
+            estimate=estimate, residual_history=tuple(self.history), iterations=self.iterations,
+            samples=self.cache.count, time=times, stop_reason=reason, transforms=transforms,
+            support_samples=self.cache.counts["support"], magnitude_samples=self.cache.counts["magnitude"],
+            bins=tuple(h.filter.bins for h in self.hashes), parameters=self.parameters)
 
-    def dense(history, iterations, hashes):
-        start, setup_before, oracle_before = time.perf_counter(), timing["setup"], cache.oracle_time
-        cache.phase = "support"
-        signal = cache.read(np.arange(n, dtype=np.int64))
+    def _dense(self):
+        """Read all ``n`` samples and take one FFT (the fallback when sparse would read too much)."""
+        clock = self._clock()
+        self.cache.phase = "support"
+        signal = self.cache.read(np.arange(self.n, dtype=np.int64))
         spectrum = fft.fftn(signal)
-        keep = np.sort(np.argsort(-np.abs(spectrum), kind="stable")[:sparsity])
-        charge("support", start, setup_before, oracle_before)
-        return finish(keep.astype(np.int64), spectrum[keep], history, iterations, "dense", hashes, transforms=1)
+        keep = np.sort(np.argsort(-np.abs(spectrum), kind="stable")[:self.sparsity])
+        self._charge("support", clock)
+        self.frequencies, self.values = keep.astype(np.int64), spectrum[keep]
+        return self._result("dense", transforms=1)
 
-    start = time.perf_counter()
-    usable = divisors_of_n[(divisors_of_n >= MINIMUM_BINS) & (divisors_of_n <= n // 4)]  # bins a hash may have
-    first_bins = choose_bins(usable, alpha * sparsity) if usable.size else 0
-    first_shifts = _shift_schedule(n, first_bins, phase_error, shift_ratio)
-    first_cost = _window_cost(first_shifts, max(1, int(round(width * first_bins / 2))))
-    first_width = 2 * max(1, int(round(width * first_bins / 2))) + 1
-    if (first_bins == 0 or first_bins < alpha * sparsity / 4  # no divisor of n near alpha K
-            or 1.5 * first_cost + magnitude_hashes * first_width >= dense_fraction * n):
-        timing["setup"] += time.perf_counter() - start
-        return dense([], 0, [])
+    # -- the solver ----------------------------------------------------------
 
-    # -- support detection (Algorithms 3, 4, 6) ------------------------------
-    frequencies = np.zeros(0, dtype=np.int64)
-    values = np.zeros(0, dtype=np.complex128)
-    hashes, history = [], []
-    reason, quiet, rejected, iterations = "max_iterations", 0, 0, 0
-    scale = 0.0
-    variance = math.inf  # noise variance per sample, least over hashes
-    timing["setup"] += time.perf_counter() - start
-    start, setup_before, oracle_before = time.perf_counter(), timing["setup"], cache.oracle_time
-    for iterations in range(1, max_iterations + 1):
-        remaining = max(sparsity - frequencies.size, rejected, 1)
-        least = max(BINS_FLOOR * first_bins, BIN_SNR * sparsity / snr_linear)
-        bins = choose_bins(usable, max(alpha * remaining, least))
-        filt = get_filter(bins)
-        shifts = _shift_schedule(n, bins, phase_error, shift_ratio)
-        if cache.count + _window_cost(shifts, filt.half_width) >= dense_fraction * n:
-            charge("support", start, setup_before, oracle_before)
-            return dense(history, iterations, hashes)
-        sigma, tau = random_coprime(rng, n), int(rng.integers(n))
-        hashed = _hash_to_bins(cache, n, filt, sigma, tau, shifts)
-        hashes.append(hashed)
-        residual = hashed.bins - _model(n, hashed, frequencies, values)
+    def setup(self):
+        """Plan the first hash; decide on the dense fallback when no suitable ``B`` exists or it is too costly."""
+        start = time.perf_counter()
+        n, tuning = self.n, self.tuning
+        self.divisors = divisors(n)
+        self.usable = self.divisors[(self.divisors >= tuning.minimum_bins) & (self.divisors <= n // 4)]
+        self.first_bins = choose_bins(self.usable, self.alpha * self.sparsity) if self.usable.size else 0
+        first_shifts = hashing.shift_schedule(n, self.first_bins, self.phase_error, self.shift_ratio)
+        first_cost = hashing.window_cost(first_shifts, max(1, int(round(self.width * self.first_bins / 2))))
+        first_width = 2 * max(1, int(round(self.width * self.first_bins / 2))) + 1
+        self.dense_needed = (self.first_bins == 0 or self.first_bins < self.alpha * self.sparsity / 4
+                             or 1.5 * first_cost + self.magnitude_hashes * first_width >= self.dense_fraction * n)
+        self.timing["setup"] += time.perf_counter() - start
+        return self
+
+    def step(self):
+        """Read one detection hash and add what it locates (Algorithms 4-6).
+
+        Returns
+        -------
+        bool
+            Whether detection goes on (``False`` once :attr:`stop_reason` is set).
+        """
+        n, tuning, cache = self.n, self.tuning, self.cache
+        clock = self._clock()
+        self.iterations += 1
+        remaining = max(self.sparsity - self.frequencies.size, self.rejected, 1)
+        least = max(tuning.bins_floor * self.first_bins, tuning.bin_snr * self.sparsity / self.snr_linear)
+        bins = choose_bins(self.usable, max(self.alpha * remaining, least))
+        filt = self._filter(bins)
+        shifts = hashing.shift_schedule(n, bins, self.phase_error, self.shift_ratio)
+        if cache.count + hashing.window_cost(shifts, filt.half_width) >= self.dense_fraction * n:
+            self._charge("support", clock)
+            self.stop_reason = "dense"
+            return False
+        sigma, tau = random_coprime(self.rng, n), int(self.rng.integers(n))
+        hashed = hashing.hash_to_bins(cache, n, filt, sigma, tau, shifts)
+        self.hashes.append(hashed)
+        residual = hashed.bins - hashing.model(n, hashed, self.frequencies, self.values)
         energy = np.mean(np.abs(residual) ** 2, axis=0)
         raw_energy = float(np.sum(np.abs(hashed.bins[0]) ** 2))
-        history.append(float(np.sum(np.abs(residual[0]) ** 2) / max(raw_energy, 1e-300)))
-        scale = max(scale, float(np.sqrt(np.max(np.mean(np.abs(hashed.bins) ** 2, axis=0)))))
-        variance = min(variance, _noise_level(energy) / filt.gain)
-        if noisy:  # the noise share of the power of every sample read so far
-            variance = min(variance, float(np.mean(np.abs(cache.values) ** 2)) / (1 + snr_linear))
-        level = variance * filt.gain
-        threshold = max(OCCUPANCY_FACTOR * level, (RELATIVE_FLOOR * scale) ** 2)
+        self.history.append(float(np.sum(np.abs(residual[0]) ** 2) / max(raw_energy, 1e-300)))
+        self.scale = max(self.scale, float(np.sqrt(np.max(np.mean(np.abs(hashed.bins) ** 2, axis=0)))))
+        self.variance = min(self.variance, _noise_level(energy, tuning.noise_quantile) / filt.gain)
+        if self.noisy:  # the noise share of the power of every sample read so far
+            self.variance = min(self.variance, float(np.mean(np.abs(cache.values) ** 2)) / (1 + self.snr_linear))
+        level = self.variance * filt.gain
+        threshold = max(tuning.occupancy_factor * level, (tuning.relative_floor * self.scale) ** 2)
         occupied = np.flatnonzero(energy > threshold)
         if occupied.size == 0:
-            reason = "converged"
-            break
-        permuted, amplitude, misfit, response = _locate(n, hashed, residual, occupied)
-        singleton = misfit <= SINGLETON_RESIDUAL + SINGLETON_NOISE * level / np.maximum(energy[occupied], 1e-300)
-        central = np.abs(response) >= MINIMUM_RESPONSE
+            self._charge("support", clock)
+            self.stop_reason = "converged"
+            return False
+        permuted, amplitude, misfit, response = hashing.locate(n, hashed, residual, occupied)
+        singleton = misfit <= (tuning.singleton_residual
+                               + tuning.singleton_noise * level / np.maximum(energy[occupied], 1e-300))
+        central = np.abs(response) >= tuning.minimum_response
         accept = singleton & central
-        rejected = int(np.count_nonzero(~singleton & central))
+        self.rejected = int(np.count_nonzero(~singleton & central))
         found = (pow(sigma, -1, n) * permuted[accept]) % n if n > 1 else permuted[accept]
         rotation = np.exp(2j * np.pi * ((found * tau) % n) / n)
         estimates = amplitude[accept] / (response[accept] * rotation)
@@ -753,42 +710,63 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
         found, estimates = found[order], estimates[order]
         first = np.ones(found.size, dtype=bool)
         first[1:] = found[1:] != found[:-1]
-        frequencies, values, added = _merge(frequencies, values, found[first], estimates[first])
-        values, levels = _polish(n, hashes, frequencies, values, scale, rounds=DETECTION_ROUNDS, variance=variance)
-        variance = min(variance, levels[-1] / filt.gain)
-        significant = np.abs(values) ** 2 > max(levels[-1], (RELATIVE_FLOOR * scale) ** 2)
-        frequencies, values = frequencies[significant], values[significant]
-        quiet = quiet + 1 if added == 0 else 0
-        if frequencies.size >= sparsity and quiet >= 2:
-            reason = "stagnated"
-            break
-    charge("support", start, setup_before, oracle_before)
+        frequencies, values, added = _merge(self.frequencies, self.values, found[first], estimates[first])
+        values, levels = _polish(n, self.hashes, frequencies, values, self.scale, tuning,
+                                 rounds=tuning.detection_rounds, variance=self.variance)
+        self.variance = min(self.variance, levels[-1] / filt.gain)
+        significant = np.abs(values) ** 2 > max(levels[-1], (tuning.relative_floor * self.scale) ** 2)
+        self.frequencies, self.values = frequencies[significant], values[significant]
+        self.quiet = self.quiet + 1 if added == 0 else 0
+        self._charge("support", clock)
+        if self.frequencies.size >= self.sparsity and self.quiet >= 2:
+            self.stop_reason = "stagnated"
+            return False
+        if self.iterations >= self.max_iterations:
+            self.stop_reason = "max_iterations"
+            return False
+        return True
 
-    # -- magnitude estimation (Algorithm 7) ----------------------------------
-    start, setup_before, oracle_before = time.perf_counter(), timing["setup"], cache.oracle_time
-    cache.phase = "magnitude"
-    if frequencies.size > sparsity:  # prune (Algorithm 3) before the final values
-        keep = np.sort(np.argsort(-np.abs(values), kind="stable")[:sparsity])
-        frequencies, values = frequencies[keep], values[keep]
-    if frequencies.size:
-        full = choose_bins(usable, alpha * frequencies.size)
-        filt = get_filter(full)
-        for _ in range(magnitude_hashes):
-            if cache.count + filt.width >= dense_fraction * n:
-                break
-            hashed = _hash_to_bins(cache, n, filt, random_coprime(rng, n), int(rng.integers(n)), np.zeros(1, np.int64))
-            hashes.append(hashed)
-        large = [hashed for hashed in hashes if hashed.filter.bins >= full / 2]
-        median = len(large) >= 3
-        if median:  # Algorithm 7: each full-size hash estimates every coefficient from its own bin
-            estimates = []
-            for hashed in large:
-                where, weights = _response(n, hashed, frequencies)
-                centre = hashed.filter.neighbours
-                residual = hashed.bins[0] - _model(n, hashed, frequencies, values)[0]
-                estimates.append(values + residual[where[:, centre]] / weights[0, :, centre])
-            estimates = np.array(estimates)
-            values = np.median(estimates.real, axis=0) + 1j * np.median(estimates.imag, axis=0)
-        values = _polish(n, hashes, frequencies, values, scale, robust_start=median, variance=variance)[0]
-    charge("magnitude", start, setup_before, oracle_before)
-    return finish(frequencies, values, history, iterations, reason, hashes)
+    def finalize(self):
+        """Magnitude estimation (Algorithm 7) and the result record; the dense fallback when planned."""
+        if self.dense_needed or self.stop_reason == "dense":
+            return self._dense()
+        n, cache = self.n, self.cache
+        clock = self._clock()
+        cache.phase = "magnitude"
+        frequencies, values = self.frequencies, self.values
+        if frequencies.size > self.sparsity:  # prune (Algorithm 3) before the final values
+            keep = np.sort(np.argsort(-np.abs(values), kind="stable")[:self.sparsity])
+            frequencies, values = frequencies[keep], values[keep]
+        if frequencies.size:
+            full = choose_bins(self.usable, self.alpha * frequencies.size)
+            filt = self._filter(full)
+            for _ in range(self.magnitude_hashes):
+                if cache.count + filt.width >= self.dense_fraction * n:
+                    break
+                hashed = hashing.hash_to_bins(cache, n, filt, random_coprime(self.rng, n), int(self.rng.integers(n)),
+                                              np.zeros(1, np.int64))
+                self.hashes.append(hashed)
+            large = [hashed for hashed in self.hashes if hashed.filter.bins >= full / 2]
+            median = len(large) >= 3
+            if median:  # Algorithm 7: each full-size hash estimates every coefficient from its own bin
+                estimates = []
+                for hashed in large:
+                    where, weights = hashing.response(n, hashed, frequencies)
+                    centre = hashed.filter.neighbours
+                    residual = hashed.bins[0] - hashing.model(n, hashed, frequencies, values)[0]
+                    estimates.append(values + residual[where[:, centre]] / weights[0, :, centre])
+                estimates = np.array(estimates)
+                values = np.median(estimates.real, axis=0) + 1j * np.median(estimates.imag, axis=0)
+            values = _polish(n, self.hashes, frequencies, values, self.scale, self.tuning, robust_start=median,
+                             variance=self.variance)[0]
+        self.frequencies, self.values = frequencies, values
+        self._charge("magnitude", clock)
+        return self._result(self.stop_reason or "max_iterations")
+
+    def run(self):
+        """``setup``, ``step`` until detection stops, ``finalize``: the :class:`SparseFourierTransformResult`."""
+        self.setup()
+        if not self.dense_needed:
+            while self.step():
+                pass
+        return self.finalize()
