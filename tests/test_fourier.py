@@ -147,5 +147,5 @@ def test_random_sparse_fourier_is_real_closed_and_reproducible():
     assert uniform.sparsity == 5 and np.all((uniform.values.real >= 0) & (uniform.values.real < 1))
     decayed = random_sparse_fourier((64,), 10, np.random.default_rng(1), decay=2.0)
     assert np.sort(np.abs(decayed.values))[0] < np.sort(np.abs(decayed.values))[-1] / 10
-    with pytest.raises(ValueError, match="'normal' or 'uniform'"):
+    with pytest.raises(ValueError, match="'normal', 'uniform' or 'unit'"):
         random_sparse_fourier((8,), 2, np.random.default_rng(0), values="cauchy")
