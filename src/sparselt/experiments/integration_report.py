@@ -1,0 +1,473 @@
+"""What the integration benchmark found and how it is written: measured Table 4.1, Figures 4.1-4.2, CSV, JSON.
+
+Thesis section 4.3 fits ``log(time)`` and ``log(memory)`` against ``log(N)``
+to compare with the complexities of Table 4.1. This module holds the results
+(one :class:`IntegrationMeasurement` per ``(s, method)``, summarised into an
+:class:`IntegrationBenchmarkResult` with the fitted exponents, the
+``sum / convolution`` ratios and the agreement verdict) and writes them.
+
+Files written into ``out``
+--------------------------
+``integration.csv``
+    One row per (method, s): N, K, P, status, best time, every run's time,
+    peak memory, baseline, estimate, agreement error, reason.
+``integration.md``
+    The measured Table 4.1: time and memory per method and ``s``, fitted
+    exponents next to Table 4.1's complexities, and ``sum / convolution``
+    ratios at the largest ``s``.
+``figure_4_1_time.png``, ``figure_4_2_memory.png``
+    Time and peak memory against ``N``, log-log, one line per method
+    (thesis Figures 4.1 and 4.2).
+``config.json``
+    The resolved configuration, :func:`~sparselt.provenance.environment_record`
+    and the summary results.
+
+References
+----------
+Thesis chapter 4 (sections 4.1-4.4, Table 4.1, Figures 4.1-4.2).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..provenance import atomic_write_bytes, write_json
+from .integration_signal import DIMENSIONS
+
+CHECK_TOLERANCE = 1e-9
+MEMORY_FLOOR_BYTES = 4 * 2**20
+
+#: Thesis Table 4.1: name, time complexity, memory complexity; then the
+#: exponent ``e`` of ``N^e`` they imply with ``K = N / 10^4`` and ``P = N^(1/2)``.
+TABLE_4_1 = {
+    "sum": ("Sum Integration", "O(N)", "O(N)", "1 (N log N with the inverse FFT)", "1"),
+    "time": ("Fourier Time Integration (no FFT)", "O(K P)", "O(K + P)", "1.5", "0.5 to 1"),
+    "time-fft": ("Fourier Time Integration (with FFT)", "O(N log N)", "O(N)", "1 (N log N)", "1"),
+    "convolution": ("Convolution Integration", "O(P log P)", "O(K + P)", "0.5", "0.5 to 1"),
+}
+
+CSV_COLUMNS = ("method", "s", "N", "K", "P", "status", "seconds", "run_seconds", "peak_bytes", "baseline_bytes",
+               "estimated_bytes", "peak_reset", "contributing_coefficients", "check_error", "reason")
+
+REPORT_FILES = ("integration.csv", "integration.md", "figure_4_1_time.png", "figure_4_2_memory.png", "config.json")
+
+
+@dataclass(frozen=True)
+class IntegrationMeasurement:
+    """One ``(s, method)`` measurement.
+
+    ``status`` is ``'measured'``, ``'skipped'`` (estimated memory above what was
+    available; ``reason`` says how much) or ``'failed'`` (the child process
+    died or raised; ``reason`` says how). ``seconds`` is the best of
+    ``run_seconds``; ``peak_bytes`` is ``VmHWM - VmRSS`` around the first
+    call; ``check_error`` the largest difference from ``'convolution'``
+    relative to the output scale (``None`` when not checked).
+    """
+
+    method: str
+    size: int
+    signal_size: int
+    coefficients: int
+    points: int
+    status: str
+    reason: str = ""
+    seconds: float | None = None
+    run_seconds: tuple = ()
+    peak_bytes: int | None = None
+    baseline_bytes: int | None = None
+    estimated_bytes: int | None = None
+    peak_reset: bool | None = None
+    contributing_coefficients: int | None = None
+    check_error: float | None = None
+
+    @property
+    def measured(self):
+        return self.status == "measured"
+
+
+@dataclass(frozen=True)
+class IntegrationBenchmarkResult:
+    """Everything :func:`~sparselt.experiments.integration_benchmark.run_integration_benchmark` measured and wrote.
+
+    Attributes
+    ----------
+    measurements : tuple of IntegrationMeasurement
+        One per (size, method), sizes ascending.
+    time_exponents, memory_exponents : dict
+        Method -> fitted exponent ``e`` of ``quantity ~ N^e`` (``None`` when
+        fewer than two sizes were measurable).
+    fit_sizes : dict
+        ``{'time': {method: sizes}, 'memory': {method: sizes}}`` used in the fits.
+    ratio_size : int or None
+        The largest ``s`` where both ``'sum'`` and ``'convolution'`` were measured.
+    speed_ratio, memory_ratio : float or None
+        ``sum / convolution`` time and peak memory at ``ratio_size``.
+    agreement_passed : bool or None
+        Every checked method agreed with ``'convolution'`` within
+        ``CHECK_TOLERANCE``; ``None`` when no size was small enough to check.
+    files : dict
+        Name -> path of every file written.
+    """
+
+    measurements: tuple
+    time_exponents: dict
+    memory_exponents: dict
+    fit_sizes: dict
+    ratio_size: int | None
+    speed_ratio: float | None
+    memory_ratio: float | None
+    agreement_passed: bool | None
+    files: dict = field(default_factory=dict)
+
+    def measurement(self, method, size):
+        """The measurement of ``method`` at ``s = size``."""
+        for item in self.measurements:
+            if item.method == method and item.size == size:
+                return item
+        raise KeyError(f"no measurement of {method!r} at s={size}")
+
+
+# -- the summary -------------------------------------------------------------
+
+
+def fit_exponent(points):
+    """The exponent ``e`` of ``value ~ size^e``, least squares in log-log.
+
+    Parameters
+    ----------
+    points : list of tuple
+        ``(size, value)`` pairs, both positive.
+
+    Returns
+    -------
+    float or None
+        ``None`` with fewer than two points.
+    """
+    if len(points) < 2:
+        return None
+    sizes, values = zip(*points)
+    return float(np.polyfit(np.log(sizes), np.log(values), 1)[0])
+
+
+def summarise(measurements, sizes, methods):
+    """Fitted exponents, ``sum / convolution`` ratios and the agreement verdict.
+
+    Parameters
+    ----------
+    measurements : tuple of IntegrationMeasurement
+    sizes : sequence of int
+        The values of ``s`` measured.
+    methods : sequence of str
+        The integration methods measured.
+
+    Returns
+    -------
+    IntegrationBenchmarkResult
+        Without ``files``. Memory is fitted only over peaks above
+        ``MEMORY_FLOOR_BYTES`` (below it, page and allocator noise dominate).
+    """
+    time_exponents, memory_exponents = {}, {}
+    fit_sizes = {"time": {}, "memory": {}}
+    for method in methods:
+        rows = [item for item in measurements if item.method == method and item.measured]
+        timed = [item for item in rows if item.seconds and item.seconds > 0]
+        heavy = [item for item in rows if item.peak_bytes is not None and item.peak_bytes > MEMORY_FLOOR_BYTES]
+        time_exponents[method] = fit_exponent([(item.signal_size, item.seconds) for item in timed])
+        memory_exponents[method] = fit_exponent([(item.signal_size, item.peak_bytes) for item in heavy])
+        fit_sizes["time"][method] = [item.size for item in timed]
+        fit_sizes["memory"][method] = [item.size for item in heavy]
+    ratio_size = speed_ratio = memory_ratio = None
+    for size in sorted(sizes, reverse=True):
+        pair = {item.method: item for item in measurements if item.size == size and item.measured}
+        if "sum" in pair and "convolution" in pair:
+            ratio_size = size
+            speed_ratio = pair["sum"].seconds / pair["convolution"].seconds
+            if pair["convolution"].peak_bytes > 0:
+                memory_ratio = pair["sum"].peak_bytes / pair["convolution"].peak_bytes
+            break
+    checked = [item for item in measurements if item.check_error is not None]
+    agreement = all(item.check_error <= CHECK_TOLERANCE for item in checked) if checked else None
+    return IntegrationBenchmarkResult(measurements, time_exponents, memory_exponents, fit_sizes, ratio_size,
+                                      speed_ratio, memory_ratio, agreement)
+
+
+def summary_record(result):
+    """The summary results as stored in ``config.json``.
+
+    Parameters
+    ----------
+    result : IntegrationBenchmarkResult
+
+    Returns
+    -------
+    dict
+        JSON-able: exponents, fit sizes, ratios, agreement and every measurement.
+    """
+    return {
+        "time_exponents": result.time_exponents,
+        "memory_exponents": result.memory_exponents,
+        "fit_sizes": result.fit_sizes,
+        "ratio_size": result.ratio_size,
+        "sum_over_convolution_time": result.speed_ratio,
+        "sum_over_convolution_memory": result.memory_ratio,
+        "agreement_passed": result.agreement_passed,
+        "measurements": [dict(item.__dict__) for item in result.measurements],
+    }
+
+
+# -- formatting --------------------------------------------------------------
+
+
+def format_seconds(seconds):
+    """``seconds`` in µs, ms or s, three significant digits; ``'-'`` for ``None``."""
+    if seconds is None:
+        return "-"
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.0f} µs"
+    if seconds < 1:
+        return f"{seconds * 1e3:.3g} ms"
+    return f"{seconds:.3g} s"
+
+
+def format_bytes(count):
+    """``count`` bytes in GiB, MiB, KiB or B, three significant digits; ``'-'`` for ``None``."""
+    if count is None:
+        return "-"
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if abs(count) >= scale:
+            return f"{count / scale:.3g} {unit}"
+    return f"{count} B"
+
+
+def format_exponent(value):
+    """A fitted exponent with two decimals; ``'-'`` for ``None``."""
+    return "-" if value is None else f"{value:.2f}"
+
+
+def progress_line(item):
+    """One line about a finished measurement, for standard error.
+
+    Parameters
+    ----------
+    item : IntegrationMeasurement
+
+    Returns
+    -------
+    str
+    """
+    head = f"s={item.size:<4d} N={item.signal_size:<10.3g} {item.method:<12s}"
+    if not item.measured:
+        return f"{head} {item.status}: {item.reason}"
+    check = "" if item.check_error is None else f", agreement error {item.check_error:.2g}"
+    return (f"{head} {format_seconds(item.seconds)} (best of {len(item.run_seconds)}), "
+            f"peak {format_bytes(item.peak_bytes)}{check}")
+
+
+def _cell(item, quantity):
+    if item is None:
+        return "-"
+    if not item.measured:
+        return item.status
+    return format_seconds(item.seconds) if quantity == "time" else format_bytes(item.peak_bytes)
+
+
+def format_table(result, config):
+    """The Markdown report (``integration.md``): measured Table 4.1, exponents, ratios, agreement."""
+    sizes = config["sizes"]
+    methods = config["methods"]
+    lookup = {(item.method, item.size): item for item in result.measurements}
+    header_sizes = " | ".join(f"s={size} (N={size ** DIMENSIONS:.2g})" for size in sizes)
+    rule = "|---" * (len(sizes) + 1) + "|"
+    lines = [
+        "# Table 4.1, measured: integrating a random sparse 4-D Fourier signal",
+        "",
+        f"N = s^4, K = floor(N x {config['density']:g}) coefficients (random support without repetition, values "
+        f"uniform in [0, 1), complex128, seed {config['seed']}), integrated over the last two axes: P = s^2 pixels. "
+        f"Time: best of up to {config['repeats']} calls. Memory: peak resident memory of the `integrate` call in a "
+        f"fresh process (VmHWM minus VmRSS just before the call), including ducc0's and numpy's allocations. "
+        f"{config['fft_threads']} FFT threads, {config['cpu_count']} cores.",
+        "",
+        "## Complexity (Table 4.1) and fitted exponents e (quantity ~ N^e)",
+        "",
+        "Expected e assumes K = N / 10^4 and P = N^(1/2). Time fits use every measured size; memory fits only sizes "
+        f"with a peak above {format_bytes(MEMORY_FLOOR_BYTES)}.",
+        "",
+        "| method | Table 4.1 time | expected e | fitted e (time) | Table 4.1 memory | expected e | fitted e (memory) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for method in methods:
+        name, time_complexity, memory_complexity, time_expected, memory_expected = TABLE_4_1[method]
+        memory_sizes = result.fit_sizes["memory"][method]
+        if result.memory_exponents[method] is not None:
+            memory_note = f" (s = {', '.join(map(str, memory_sizes))})"
+        else:
+            memory_note = f" (fewer than two peaks above {format_bytes(MEMORY_FLOOR_BYTES)})"
+        lines.append(f"| {name} (`{method}`) | {time_complexity} | {time_expected} | "
+                     f"{format_exponent(result.time_exponents[method])} | {memory_complexity} | {memory_expected} | "
+                     f"{format_exponent(result.memory_exponents[method])}{memory_note} |")
+    for quantity, title in (("time", "Time"), ("memory", "Peak memory")):
+        lines += ["", f"## {title}", "", f"| method | {header_sizes} |", rule]
+        for method in methods:
+            cells = " | ".join(_cell(lookup.get((method, size)), quantity) for size in sizes)
+            lines.append(f"| {method} | {cells} |")
+    lines += ["", "## sum / convolution", ""]
+    if result.ratio_size is None:
+        lines.append("Not available: 'sum' and 'convolution' were not both measured at any size.")
+    else:
+        total = lookup[("sum", result.ratio_size)]
+        convolution = lookup[("convolution", result.ratio_size)]
+        memory = (f"{result.memory_ratio:.3g}x" if result.memory_ratio is not None
+                  else "undefined (convolution's peak was below one page)")
+        lines.append(f"At s = {result.ratio_size} (N = {result.ratio_size ** DIMENSIONS:.3g}): convolution is "
+                     f"{result.speed_ratio:.3g}x faster than sum ({format_seconds(total.seconds)} vs "
+                     f"{format_seconds(convolution.seconds)}; target >= 1000x) and uses {memory} less peak memory "
+                     f"({format_bytes(total.peak_bytes)} vs {format_bytes(convolution.peak_bytes)}).")
+        if result.ratio_size != max(sizes):
+            lines.append(f"(The largest size, s = {max(sizes)}, lacks one of the two; see the notes.)")
+    checked = [item for item in result.measurements if item.check_error is not None]
+    lines += ["", "## Agreement with 'convolution'", ""]
+    if not checked:
+        lines.append("Not checked (no size <= check_max_size).")
+    else:
+        worst = max(item.check_error for item in checked)
+        verdict = "passed" if result.agreement_passed else "FAILED"
+        lines.append(f"{verdict}: at s <= {config['check_max_size']} every method equals 'convolution' within a relative "
+                     f"{CHECK_TOLERANCE:g} (largest error {worst:.2g}), on the measured signal and on the same signal "
+                     "with on-plane coefficients added (at K = N / 10^4 few coefficients reach the image).")
+    reaching = {item.size: item.contributing_coefficients for item in result.measurements
+                if item.contributing_coefficients is not None}
+    lines += ["", "## Notes", "",
+              f"- The 'time' method evaluates its basis functions in blocks of about {config['time_block_values']} values "
+              "(coefficients x output points), so its memory is O(K + P) plus a constant block.",
+              "- Coefficients reaching the image (zero integrated coordinates) in the measured signal: "
+              + ", ".join(f"s={size}: {reaching.get(size, '-')}" for size in sizes) + "."]
+    lines += [f"- s={item.size} {item.method}: {item.status}: {item.reason}" for item in result.measurements if item.reason]
+    return "\n".join(lines) + "\n"
+
+
+def csv_text(measurements):
+    """``integration.csv``: a header of ``CSV_COLUMNS`` and one row per measurement.
+
+    Parameters
+    ----------
+    measurements : sequence of IntegrationMeasurement
+
+    Returns
+    -------
+    str
+    """
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for item in measurements:
+        writer.writerow([
+            item.method, item.size, item.signal_size, item.coefficients, item.points, item.status,
+            "" if item.seconds is None else f"{item.seconds:.6g}",
+            ";".join(f"{value:.6g}" for value in item.run_seconds),
+            "" if item.peak_bytes is None else item.peak_bytes,
+            "" if item.baseline_bytes is None else item.baseline_bytes,
+            "" if item.estimated_bytes is None else item.estimated_bytes,
+            "" if item.peak_reset is None else item.peak_reset,
+            "" if item.contributing_coefficients is None else item.contributing_coefficients,
+            "" if item.check_error is None else f"{item.check_error:.3g}",
+            item.reason,
+        ])
+    return buffer.getvalue()
+
+
+def plot(measurements, methods, quantity, path):
+    """Figure 4.1 (``quantity='time'``) or 4.2 (``'memory'``): the quantity against ``N``, log-log.
+
+    Parameters
+    ----------
+    measurements : sequence of IntegrationMeasurement
+    methods : sequence of str
+        One line per method; the others' skips and failures are not annotated.
+    quantity : {'time', 'memory'}
+    path : str
+        The PNG file written.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+    import matplotlib.ticker
+
+    from ..images import save_figure
+
+    figure, axis = pyplot.subplots(figsize=(7, 5))
+    sizes = sorted({item.size for item in measurements})
+    styles = {"sum": ("o", "-", None), "time": ("s", "-", None), "time-fft": ("D", "--", "none"),
+              "convolution": ("^", "-", None)}
+    for method in methods:
+        marker, line, face = styles[method]
+        rows = [item for item in measurements if item.method == method and item.measured]
+        if quantity == "time":
+            points = [(item.signal_size, item.seconds) for item in rows if item.seconds and item.seconds > 0]
+        else:
+            points = [(item.signal_size, item.peak_bytes / 2**20) for item in rows if item.peak_bytes and item.peak_bytes > 0]
+        if points:
+            axis.loglog(*zip(*points), marker=marker, linestyle=line, markerfacecolor=face,
+                        label=f"{TABLE_4_1[method][0]} ('{method}')")
+    if quantity == "memory":
+        axis.axhline(MEMORY_FLOOR_BYTES / 2**20, color="grey", linestyle=":", linewidth=1,
+                     label=f"{MEMORY_FLOOR_BYTES // 2**20} MiB (below: allocator noise, not fitted)")
+        axis.set_ylabel("peak memory of integrate (MiB)")
+        axis.set_title("Figure 4.2: memory of the integration with regard to signal size")
+    else:
+        axis.set_ylabel("execution time (s)")
+        axis.set_title("Figure 4.1: execution time of the integration with regard to signal size")
+    axis.set_xscale("log")
+    axis.set_yscale("log")
+    top = axis.get_ylim()[1]
+    for item in measurements:
+        if item.method in methods and not item.measured:
+            axis.annotate(f"{item.method}: {item.status}", (item.signal_size, top), fontsize=7, rotation=90,
+                          va="top", ha="right")
+    axis.set_xticks([size ** DIMENSIONS for size in sizes])
+    axis.set_xticklabels([f"{size ** DIMENSIONS:.2g}\ns={size}" for size in sizes])
+    axis.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+    axis.set_xlabel("signal size N = s^4 (K = N / 10^4 coefficients, P = s^2 pixels)")
+    axis.grid(True, which="major", alpha=0.3)
+    if axis.get_legend_handles_labels()[0]:
+        axis.legend(fontsize=8)
+    save_figure(figure, path, dpi=120, bbox_inches="tight")
+
+
+def write_report(out, result, config, environment):
+    """Write every file of the report into folder ``out``.
+
+    Parameters
+    ----------
+    out : str
+        The output folder (exists).
+    result : IntegrationBenchmarkResult
+        The summary, from :func:`summarise`.
+    config : dict
+        The resolved configuration; ``sizes``, ``methods`` and the values the
+        table quotes.
+    environment : dict
+        :func:`~sparselt.provenance.environment_record`, stored in ``config.json``.
+
+    Returns
+    -------
+    result : IntegrationBenchmarkResult
+        ``result`` with ``files``: name -> path of every file written.
+    table : str
+        The Markdown report, as written to ``integration.md``.
+    """
+    files = {name: os.path.join(out, name) for name in REPORT_FILES}
+    methods = config["methods"]
+    table = format_table(result, config)
+    atomic_write_bytes(files["integration.csv"], csv_text(result.measurements).encode())
+    atomic_write_bytes(files["integration.md"], table.encode())
+    plot(result.measurements, methods, "time", files["figure_4_1_time.png"])
+    plot(result.measurements, methods, "memory", files["figure_4_2_memory.png"])
+    write_json(files["config.json"], {"config": config, "environment": environment, "results": summary_record(result)})
+    return dataclasses.replace(result, files=files), table
