@@ -482,9 +482,7 @@ def gini_index_streaming(chunks, *, energy=False, buckets=DEFAULT_BUCKETS):
 
     References
     ----------
-    .. [1] Thesis, section 5.1 "Sparsity Metrics", eq. 5.1.
-    .. [2] N. Hurley and S. Rickard, "Comparing measures of sparsity", IEEE
-       Transactions on Information Theory 55(10), 4723-4741, 2009.
+    Thesis section 5.1, eq. 5.1, and Hurley and Rickard (2009), as :func:`gini_index`.
     """
     energy = _check_flag(energy, "energy")
     histogram = GiniHistogram(buckets=buckets)

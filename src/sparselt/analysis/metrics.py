@@ -463,11 +463,7 @@ def image_ssim(image, reference):
 
     References
     ----------
-    Thesis, section 5.2 "Image Quality Metric", eq. 5.2.
-
-    Wang, Z., Bovik, A. C., Sheikh, H. R. and Simoncelli, E. P. (2004). Image
-    quality assessment: from error visibility to structural similarity. IEEE
-    Transactions on Image Processing, 13(4), 600-612.
+    Thesis section 5.2, eq. 5.2, and Wang et al. (2004), as :func:`structural_similarity`.
     """
     return structural_similarity(
         display_image(image, reference),

@@ -158,6 +158,25 @@ def _check_callback(callback):
     return callback
 
 
+def _start(operator, y, sparsity, tolerance, callback, phases):
+    """The checked inputs and the empty state every greedy solver starts from (CoSaMP, OMP)."""
+    samples = _validate(operator, y, sparsity)
+    clock = PhaseTimer(phases)
+    support = np.zeros(0, dtype=np.int64)
+    values = np.zeros(0, dtype=operator.coefficient_dtype)
+    return (samples, _check_tolerance(tolerance), _check_callback(callback), clock, operator.transforms,
+            float(np.linalg.norm(samples)) or 1.0, support, values, samples.copy(), [])
+
+
+def _stop(relative, tolerance, callback, iteration, support, values):
+    """``'converged'`` at the tolerance, ``'callback'`` when the callback says stop, else ``None``."""
+    if relative <= tolerance:
+        return "converged"
+    if callback is not None and callback(iteration, relative, support, values):
+        return "callback"
+    return None
+
+
 def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugate_gradient_steps=4,
            patience=2, stagnation=1e-3, callback=None):
     """Compressive Sampling Matching Pursuit (Needell & Tropp 2009; thesis Algorithm 2).
@@ -200,16 +219,8 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     D. Needell and J. A. Tropp, "CoSaMP: Iterative signal recovery from
     incomplete and inaccurate samples", ACHA 26(3), 2009. Thesis 2.2.1.
     """
-    samples = _validate(operator, y, sparsity)
-    tolerance = _check_tolerance(tolerance)
-    callback = _check_callback(callback)
-    clock = PhaseTimer(("proxy", "select", "least_squares", "prune", "residual"))
-    transforms_before = operator.transforms
-    norm = float(np.linalg.norm(samples)) or 1.0
-    support = np.zeros(0, dtype=np.int64)
-    values = np.zeros(0, dtype=operator.coefficient_dtype)
-    residual = samples.copy()
-    history = []
+    samples, tolerance, callback, clock, transforms_before, norm, support, values, residual, history = _start(
+        operator, y, sparsity, tolerance, callback, ("proxy", "select", "least_squares", "prune", "residual"))
     best = (math.inf, support, values)
     stop_reason = "max_iterations"
     quiet = 0
@@ -237,11 +248,9 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
             quiet += 1
         if relative < best[0]:
             best = (relative, support, values)
-        if relative <= tolerance:
-            stop_reason = "converged"
-            break
-        if callback is not None and callback(iteration, relative, support, values):
-            stop_reason = "callback"
+        reason = _stop(relative, tolerance, callback, iteration, support, values)
+        if reason is not None:
+            stop_reason = reason
             break
         if quiet >= patience:
             stop_reason = "stagnated"
@@ -261,16 +270,8 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50, c
     ``sparsity`` coefficients (``'sparsity_reached'``) or the relative residual
     is below ``tolerance`` (``'converged'``).
     """
-    samples = _validate(operator, y, sparsity)
-    tolerance = _check_tolerance(tolerance)
-    callback = _check_callback(callback)
-    clock = PhaseTimer(("proxy", "select", "least_squares", "residual"))
-    transforms_before = operator.transforms
-    norm = float(np.linalg.norm(samples)) or 1.0
-    support = np.zeros(0, dtype=np.int64)
-    values = np.zeros(0, dtype=operator.coefficient_dtype)
-    residual = samples.copy()
-    history = []
+    samples, tolerance, callback, clock, transforms_before, norm, support, values, residual, history = _start(
+        operator, y, sparsity, tolerance, callback, ("proxy", "select", "least_squares", "residual"))
     stop_reason = "sparsity_reached"
     iteration = 0
     while True:
@@ -290,11 +291,9 @@ def omp(operator, y, sparsity, *, tolerance=1e-6, conjugate_gradient_steps=50, c
             residual = samples - operator.forward_on(support, values)
             relative = float(np.linalg.norm(residual)) / norm
             history.append(relative)
-        if relative <= tolerance:
-            stop_reason = "converged"
-            break
-        if callback is not None and callback(iteration, relative, support, values):
-            stop_reason = "callback"
+        reason = _stop(relative, tolerance, callback, iteration, support, values)
+        if reason is not None:
+            stop_reason = reason
             break
         if int(operator.coefficient_counts(support).sum()) >= sparsity or support.size >= operator.input_size:
             break
