@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from ..fourier import fft
+from ..fourier.hermitian import partner_indices
 from ..fourier.sparse import SparseFourier, check_shape
 from .base import LinearOperator
 
@@ -149,8 +150,7 @@ class PartialFourier(LinearOperator):
         other = self.grid_shape[:-1]
         count = math.prod(other)
         flat_other = np.arange(count, dtype=np.int64)
-        coordinates = np.unravel_index(flat_other, other) if other else ()
-        partner_other = np.ravel_multi_index(tuple((-c) % s for c, s in zip(coordinates, other)), other) if other else flat_other
+        partner_other = partner_indices(other, flat_other) if other else flat_other
         noncanonical, selfconjugate = [], []
         for plane in planes:
             flat = flat_other * half + plane
@@ -281,7 +281,7 @@ class PartialFourier(LinearOperator):
         coefficients = values / analysis
         coordinates = np.unravel_index(support, self.coefficient_shape)
         full = np.ravel_multi_index(coordinates, self.grid_shape)
-        mirrored = np.ravel_multi_index(tuple((-c) % s for c, s in zip(coordinates, self.grid_shape)), self.grid_shape)
+        mirrored = partner_indices(self.grid_shape, full)
         pairs = mirrored != full
         coefficients = np.where(pairs, coefficients, coefficients.real)
         indices = np.concatenate([full, mirrored[pairs]])
