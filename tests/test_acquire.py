@@ -164,40 +164,32 @@ def test_nonfinite_samples_counted_and_zeroed_on_request(cornell):
     assert np.all(np.isfinite(signal.data))
 
 
-@pytest.mark.parametrize(
-    "changes, message",
-    [
-        (dict(spp=0), "spp"),
-        (dict(spp=-3), "spp"),
-        (dict(seed=-1), "seed"),
-        (dict(shape=(8, 8, 4, 4)), "has 4 axes but kind 'path'"),
-        (dict(shape=(8,)), "two image-plane axes"),
-        (dict(shape=(8, 0, 2, 2)), "resolution"),
-        (dict(kind="dof", shape=(8, 8, 4, 4)), "--aperture"),
-        (dict(kind="volumes"), "choose one of"),
-        (dict(max_depth=0), "max_depth"),
-        (dict(nonfinite="ignore"), "nonfinite"),
-    ],
-)
-def test_bad_configuration_is_refused(changes, message, cornell):
-    with pytest.raises(ValueError, match=message):
-        acquire_signal(_config(**changes), progress=False, scene_spec=cornell)
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(spp=0), ValueError, "spp"),
+    (dict(spp=-3), ValueError, "spp"),
+    (dict(seed=-1), ValueError, "seed"),
+    (dict(shape=(8, 8, 4, 4)), ValueError, "has 4 axes but kind 'path'"),
+    (dict(shape=(8,)), ValueError, "two image-plane axes"),
+    (dict(shape=(8, 0, 2, 2)), ValueError, "resolution"),
+    (dict(kind="dof", shape=(8, 8, 4, 4)), ValueError, "--aperture"),
+    (dict(kind="volumes"), ValueError, "choose one of"),
+    (dict(max_depth=0), ValueError, "max_depth"),
+    (dict(nonfinite="ignore"), ValueError, "nonfinite"),
+    # 4.1e9 cells of 12 bytes: 49 GB, more than half the memory of any machine this runs on.
+    (dict(kind="indirect", shape=(2000, 2000, 32, 32)), ValueError, "give an output path"),
+    (dict(shape=(1000, 1000, 4, 4, 4, 4, 4, 4, 4, 4)), ValueError, "2\\*\\*32"),
+], ids=["spp-zero", "negative-spp", "negative-seed", "shape-of-another-kind", "one-axis-shape", "zero-resolution",
+        "dof-on-a-pinhole-camera", "unknown-kind", "max-depth-zero", "unknown-nonfinite",
+        "too-large-for-memory-without-a-path", "more-than-2**32-cells"])
+def test_acquire_signal_invalid_configuration(arguments, error, message, cornell):
+    """The configuration (changes to _config) is refused before anything is rendered."""
+    with pytest.raises(error, match=message):
+        acquire_signal(_config(**arguments), progress=False, scene_spec=cornell)
 
 
 def test_unknown_scene_is_refused_with_the_names():
     with pytest.raises(ValueError, match="cornell-caustics"):
         acquire_signal(_config(scene="san-miguel"), progress=False)
-
-
-def test_signal_too_large_for_memory_needs_a_path(cornell):
-    # 4.1e9 cells of 12 bytes: 49 GB, more than half the memory of any machine this runs on.
-    with pytest.raises(ValueError, match="give an output path"):
-        acquire_signal(_config(kind="indirect", shape=(2000, 2000, 32, 32)), progress=False, scene_spec=cornell)
-
-
-def test_too_many_cells_are_refused(cornell):
-    with pytest.raises(ValueError, match="2\\*\\*32"):
-        acquire_signal(_config(shape=(1000, 1000, 4, 4, 4, 4, 4, 4, 4, 4)), progress=False, scene_spec=cornell)
 
 
 def test_refused_configuration_creates_no_folder(tmp_path, cornell):

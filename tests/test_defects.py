@@ -157,23 +157,19 @@ def test_integrate_refuses_fractional_axes():
         integrate(representation, keep_axes=(0, 1.7))
 
 
-@pytest.mark.parametrize("tolerance, error", [(float("nan"), ValueError), (-1.0, ValueError), ("tiny", TypeError)])
-def test_cosamp_refuses_bad_tolerance(tolerance, error):
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(y=np.ones(32), tolerance=float("nan")), ValueError, "tolerance"),
+    (dict(y=np.ones(32), tolerance=-1.0), ValueError, "tolerance"),
+    (dict(y=np.ones(32), tolerance="tiny"), TypeError, "tolerance"),
+    (dict(y=np.full(32, 1e19)), ValueError, "too large for float32"),
+], ids=["nan-tolerance", "negative-tolerance", "non-numeric-tolerance", "measurements-too-large-for-float32"])
+def test_cosamp_invalid_input(arguments, error, message):
     from sparselt.operators import PartialFourier
     from sparselt.recovery.cosamp import cosamp
 
     operator = PartialFourier((8, 8), np.arange(0, 64, 2))
-    with pytest.raises(error, match="tolerance"):
-        cosamp(operator, np.ones(32), 4, tolerance=tolerance)
-
-
-def test_cosamp_refuses_measurements_too_large_for_float32():
-    from sparselt.operators import PartialFourier
-    from sparselt.recovery.cosamp import cosamp
-
-    operator = PartialFourier((8, 8), np.arange(0, 64, 2))
-    with pytest.raises(ValueError, match="too large for float32"):
-        cosamp(operator, np.full(32, 1e19), 4)
+    with pytest.raises(error, match=message):
+        cosamp(operator, sparsity=4, **arguments)
 
 
 def test_ssim_with_a_huge_data_range_does_not_overflow():

@@ -121,8 +121,12 @@ BAD = [
 ]
 
 
-@pytest.mark.parametrize("changes, error, message", BAD)
-def test_bad_input_is_refused_with_a_clear_message(changes, error, message):
+@pytest.mark.parametrize("changes, error, message", BAD, ids=[
+    "negative-radius", "fractional-radius", "radius-with-too-many-entries", "sigma-spatial-zero", "nan-sigma-spatial",
+    "negative-sigma-range", "more-sigma-ranges-than-guides", "guide-of-another-shape", "guides-not-a-list",
+    "nan-in-image"])
+def test_cross_bilateral_invalid_input(changes, error, message):
+    """Each row changes one argument of an otherwise valid call."""
     arguments = dict(image=IMAGE, guides=[np.ones((6, 6))], radius=1, sigma_spatial=1.0, sigma_range=0.1)
     arguments.update(changes)
     with pytest.raises(error, match=message):
@@ -157,15 +161,16 @@ def test_oidn_missing_says_how_to_install(monkeypatch):
         oidn_denoise(np.ones((4, 4, 3)))
 
 
-@pytest.mark.parametrize("changes, message", [
-    (dict(albedo=np.ones((4, 5, 3))), "albedo has shape"),
-    (dict(color=np.full((4, 4, 3), np.inf)), "color has NaN or infinite"),
-    (dict(albedo=None, normal=np.ones((4, 4, 3))), "normals only together with albedo"),
-])
-def test_oidn_bad_input(changes, message):
+@pytest.mark.parametrize("changes, error, message", [
+    (dict(albedo=np.ones((4, 5, 3))), ValueError, "albedo has shape"),
+    (dict(color=np.full((4, 4, 3), np.inf)), ValueError, "color has NaN or infinite"),
+    (dict(albedo=None, normal=np.ones((4, 4, 3))), ValueError, "normals only together with albedo"),
+], ids=["albedo-of-another-shape", "infinite-color", "normals-without-albedo"])
+def test_oidn_denoise_invalid_input(changes, error, message):
+    """Each row changes one argument of an otherwise valid call."""
     from sparselt.filters import oidn_denoise
 
     arguments = dict(color=np.ones((4, 4, 3)), albedo=np.ones((4, 4, 3)), normal=np.zeros((4, 4, 3)))
     arguments.update(changes)
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(error, match=message):
         oidn_denoise(arguments.pop("color"), **arguments)

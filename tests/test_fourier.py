@@ -35,13 +35,28 @@ def test_real_fft_matches_numpy_and_round_trips(dtype):
     assert np.allclose(fft.fftn(signal.astype(np.float64)), np.fft.fftn(signal.astype(np.float64)))
 
 
-def test_fft_rejects_bad_arguments():
-    with pytest.raises(ValueError, match="norm"):
-        fft.fftn(np.zeros(4), norm="unitary")
-    with pytest.raises(ValueError, match="axes"):
-        fft.fftn(np.zeros((4, 4)), axes=(0, 2))
-    with pytest.raises(ValueError, match="real"):
-        fft.rfftn(np.zeros(4, complex))
+def call(*args, **kwargs):
+    """One row's arguments: positional and keyword."""
+    return args, kwargs
+
+
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(np.zeros(4), norm="unitary"), ValueError, "norm"),
+    (call(np.zeros((4, 4)), axes=(0, 2)), ValueError, "axes"),
+], ids=["unknown-norm", "axis-out-of-range"])
+def test_fftn_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        fft.fftn(*args, **kwargs)
+
+
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(np.zeros(4, complex)), ValueError, "real"),
+], ids=["complex-input"])
+def test_rfftn_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        fft.rfftn(*args, **kwargs)
 
 
 def _random_sparse(shape, count, seed, real=False, channels=()):
@@ -86,16 +101,17 @@ def test_largest_keeps_hermitian_pairs_together():
         assert dropped_energy.max() <= threshold * (1 + 1e-9)
 
 
-@pytest.mark.parametrize("arguments, message", [
-    (dict(shape=(4, 4), indices=[0, 16], values=[1, 2]), "out of range"),
-    (dict(shape=(4, 4), indices=[3, 3], values=[1, 2]), "distinct"),
-    (dict(shape=(4, 4), indices=[1, 2], values=[1]), "one row per index"),
-    (dict(shape=(4, 0), indices=[], values=[]), "positive"),
-    (dict(shape=(4, 4), indices=[1], values=[1.0], real=True), "partner"),
-    (dict(shape=(4, 4), indices=[1, 3], values=[1.0, 5.0], real=True), "conjugate"),
-])
-def test_sparse_fourier_rejects_bad_input(arguments, message):
-    with pytest.raises(ValueError, match=message):
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(shape=(4, 4), indices=[0, 16], values=[1, 2]), ValueError, "out of range"),
+    (dict(shape=(4, 4), indices=[3, 3], values=[1, 2]), ValueError, "distinct"),
+    (dict(shape=(4, 4), indices=[1, 2], values=[1]), ValueError, "one row per index"),
+    (dict(shape=(4, 0), indices=[], values=[]), ValueError, "positive"),
+    (dict(shape=(4, 4), indices=[1], values=[1.0], real=True), ValueError, "partner"),
+    (dict(shape=(4, 4), indices=[1, 3], values=[1.0, 5.0], real=True), ValueError, "conjugate"),
+], ids=["index-out-of-range", "repeated-index", "too-few-values", "zero-size-axis", "real-without-partner",
+        "real-partners-not-conjugate"])
+def test_sparse_fourier_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
         SparseFourier(**arguments)
 
 
@@ -126,15 +142,16 @@ def test_integration_with_rgb_channels():
         assert np.allclose(integrate(representation, (0, 1), method), expected)
 
 
-@pytest.mark.parametrize("keep, message", [((0, 4), "out of range"), ((1, 1), "repeats"), ("xy", "axis")])
-def test_integration_rejects_bad_axes(keep, message):
-    with pytest.raises(ValueError, match=message):
-        integrate(_random_sparse((4, 4, 2, 2), 5, 0), keep)
-
-
-def test_integration_rejects_unknown_method():
-    with pytest.raises(ValueError, match="convolution"):
-        integrate(_random_sparse((4, 4), 3, 0), (0,), method="trapezoid")
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(_random_sparse((4, 4, 2, 2), 5, 0), (0, 4)), ValueError, "out of range"),
+    (call(_random_sparse((4, 4, 2, 2), 5, 0), (1, 1)), ValueError, "repeats"),
+    (call(_random_sparse((4, 4, 2, 2), 5, 0), "xy"), ValueError, "axis"),
+    (call(_random_sparse((4, 4), 3, 0), (0,), method="trapezoid"), ValueError, "convolution"),
+], ids=["axis-out-of-range", "repeated-axis", "axis-names-not-numbers", "unknown-method"])
+def test_integrate_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        integrate(*args, **kwargs)
 
 
 def test_random_sparse_fourier_is_real_closed_and_reproducible():

@@ -80,17 +80,18 @@ def test_negative_reconstruction_values_clamp_when_asked():
     np.testing.assert_allclose(importance.pdf, [[1 / 3, 0.0], [2 / 3, 0.0]])
 
 
-@pytest.mark.parametrize("values, options, error, message", [
-    (np.array([1.0, np.nan]), {}, ValueError, "1 NaN or infinite"),
-    (np.zeros(4), {"defensive": 0.0}, ValueError, "all zero and defensive = 0"),
-    (np.ones(4), {"defensive": 1.5}, ValueError, r"defensive must be in \[0, 1\]"),
-    (np.ones(4), {"defensive": -0.1}, ValueError, r"defensive must be in \[0, 1\]"),
-    (np.ones(4), {"defensive": "a"}, TypeError, "defensive must be a number"),
-    (np.ones(()), {}, ValueError, "at least one axis"),
-])
-def test_bad_maps_are_refused(values, options, error, message):
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(values=np.array([1.0, np.nan])), ValueError, "1 NaN or infinite"),
+    (dict(values=np.zeros(4), defensive=0.0), ValueError, "all zero and defensive = 0"),
+    (dict(values=np.ones(4), defensive=1.5), ValueError, r"defensive must be in \[0, 1\]"),
+    (dict(values=np.ones(4), defensive=-0.1), ValueError, r"defensive must be in \[0, 1\]"),
+    (dict(values=np.ones(4), defensive="a"), TypeError, "defensive must be a number"),
+    (dict(values=np.ones(())), ValueError, "at least one axis"),
+], ids=["nan-value", "all-zero-without-defensive", "defensive-above-one", "negative-defensive",
+        "non-numeric-defensive", "zero-dimensional"])
+def test_importance_map_invalid_input(arguments, error, message):
     with pytest.raises(error, match=message):
-        ImportanceMap(values, **options)
+        ImportanceMap(**arguments)
 
 
 def test_all_zero_map_with_defensive_is_uniform():
@@ -98,9 +99,11 @@ def test_all_zero_map_with_defensive_is_uniform():
     np.testing.assert_allclose(importance.pdf, 1 / 9)
 
 
-def test_sample_rejects_points_outside_the_unit_cube():
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(u=np.array([[0.5, 1.0]])), ValueError, r"u must lie in \[0, 1\)\^2"),
+    (dict(u=np.zeros((3, 3))), ValueError, r"u must have shape \(n, 2\)"),
+], ids=["point-outside-the-unit-cube", "wrong-point-dimension"])
+def test_importance_map_sample_invalid_input(arguments, error, message):
     importance = ImportanceMap(np.ones((2, 2)))
-    with pytest.raises(ValueError, match=r"u must lie in \[0, 1\)\^2"):
-        importance.sample(np.array([[0.5, 1.0]]))
-    with pytest.raises(ValueError, match=r"u must have shape \(n, 2\)"):
-        importance.sample(np.zeros((3, 3)))
+    with pytest.raises(error, match=message):
+        importance.sample(**arguments)

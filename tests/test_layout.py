@@ -45,17 +45,13 @@ def test_lens_dimensions_follow_the_image_plane():
     assert "lens_u" not in layout.axes
 
 
-def test_dof_on_a_pinhole_camera_is_refused():
-    with pytest.raises(ValueError, match="--aperture"):
-        path_layout("dof", 3, thin_lens=False)
-
-
-def test_unknown_kind_lists_the_kinds():
-    with pytest.raises(ValueError, match="path-indirect"):
-        path_layout("caustics", 3)
-
-
-@pytest.mark.parametrize("kind, depth", [("indirect", 2), ("path-indirect", 1), ("path", 0)])
-def test_depth_below_the_kind_minimum_is_refused(kind, depth):
-    with pytest.raises(ValueError, match="max_depth"):
-        path_layout(kind, depth)
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(kind="dof", max_depth=3, thin_lens=False), ValueError, "--aperture"),
+    (dict(kind="caustics", max_depth=3), ValueError, "path-indirect"),  # the message lists the kinds
+    (dict(kind="indirect", max_depth=2), ValueError, "max_depth"),
+    (dict(kind="path-indirect", max_depth=1), ValueError, "max_depth"),
+    (dict(kind="path", max_depth=0), ValueError, "max_depth"),
+], ids=["dof-on-a-pinhole-camera", "unknown-kind", "indirect-depth-2", "path-indirect-depth-1", "path-depth-0"])
+def test_path_layout_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        path_layout(**arguments)

@@ -149,166 +149,111 @@ def test_relative_mse_rgb_shares_the_mean_channel_denominator():
     assert relative_mean_squared_error(image, reference) == pytest.approx(expected, rel=1e-14)
 
 
-# --------------------------------------------------------------------------- validation: one raise per branch
+# --------------------------------------------------------------------------- validation: one row per branch
 
 
 GOOD = np.random.default_rng(9).random((16, 16))
+COLOUR = np.zeros((16, 16, 3))
 
 
-def test_ssim_requires_data_range():
-    with pytest.raises(ValueError, match="data_range is required"):
-        structural_similarity(GOOD, GOOD)
+def call(*args, **kwargs):
+    """One row's arguments: positional and keyword."""
+    return args, kwargs
 
 
-def test_ssim_rejects_none_data_range():
-    with pytest.raises(ValueError, match="data_range is required"):
-        structural_similarity(GOOD, GOOD, data_range=None)
+def _with(array, index, value):
+    """A copy of array with one entry replaced."""
+    array = array.copy()
+    array[index] = value
+    return array
 
 
-def test_data_range_is_keyword_only():
-    with pytest.raises(TypeError):
-        structural_similarity(GOOD, GOOD, 1.0)
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(GOOD, GOOD), ValueError, "data_range is required"),
+    (call(GOOD, GOOD, data_range=None), ValueError, "data_range is required"),
+    (call(GOOD, GOOD, 1.0), TypeError, None),  # data_range is keyword-only
+    (call(GOOD, GOOD, data_range=0.0), ValueError, "greater than 0"),
+    (call(GOOD, GOOD, data_range=-1.0), ValueError, "greater than 0"),
+    (call(GOOD, GOOD, data_range=math.inf), ValueError, "finite"),
+    (call(GOOD, GOOD, data_range=math.nan), ValueError, "finite"),
+    (call(GOOD, GOOD, data_range="1.0"), TypeError, "data_range"),
+    (call(GOOD, GOOD[:, :15], data_range=1.0), ValueError, "same shape"),
+    (call(np.zeros((6, 6)), np.zeros((6, 6)), data_range=1.0), ValueError, "at least 11x11"),
+    (call(np.zeros((10, 30)), np.zeros((10, 30)), data_range=1.0), ValueError, "at least 11x11"),
+    (call(np.zeros((30, 10)), np.zeros((30, 10)), data_range=1.0), ValueError, "at least 11x11"),
+    (call(np.zeros((10, 16, 3)), np.zeros((10, 16, 3)), data_range=1.0, channel_axis=-1),
+     ValueError, "at least 11x11"),
+    (call(np.zeros((0, 16)), np.zeros((0, 16)), data_range=1.0), ValueError, "empty"),
+    (call(_with(GOOD, (3, 4), np.nan), GOOD, data_range=1.0), ValueError, "NaN or infinite"),
+    (call(GOOD, _with(GOOD, (0, 0), np.inf), data_range=1.0), ValueError, "reference contains 1 NaN or infinite"),
+    (call(GOOD + 0j, GOOD, data_range=1.0), ValueError, "real-valued"),
+    (call(np.full((16, 16), "a"), GOOD, data_range=1.0), TypeError, "numeric"),
+    (call(COLOUR, COLOUR, data_range=1.0), ValueError, "pass channel_axis"),
+    (call(GOOD, GOOD, data_range=1.0, channel_axis=-1), ValueError, "must be 3-D"),
+    (call(COLOUR, COLOUR, data_range=1.0, channel_axis=3), ValueError, r"channel_axis must be None or in \[-3, 2\]"),
+    (call(COLOUR, COLOUR, data_range=1.0, channel_axis=1.5), TypeError, "channel_axis"),
+    (call(GOOD, GOOD, data_range=1.0, full="yes"), TypeError, "full"),
+], ids=["missing-data-range", "none-data-range", "positional-data-range", "zero-data-range",
+        "negative-data-range", "infinite-data-range", "nan-data-range", "non-numeric-data-range",
+        "mismatched-shapes", "smaller-than-window-6x6", "smaller-than-window-10x30", "smaller-than-window-30x10",
+        "small-colour-image", "empty-image", "nan-in-image", "inf-in-reference", "complex-input",
+        "non-numeric-input", "colour-without-channel-axis", "channel-axis-on-grayscale",
+        "out-of-range-channel-axis", "non-integer-channel-axis", "non-boolean-full"])
+def test_structural_similarity_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        structural_similarity(*args, **kwargs)
 
 
-@pytest.mark.parametrize("data_range", [0.0, -1.0])
-def test_ssim_rejects_non_positive_data_range(data_range):
-    with pytest.raises(ValueError, match="greater than 0"):
-        structural_similarity(GOOD, GOOD, data_range=data_range)
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(GOOD, GOOD), ValueError, "data_range is required"),
+    (call(GOOD, GOOD, data_range=-2.0), ValueError, "greater than 0"),
+    (call(GOOD, GOOD.T[:3], data_range=1.0), ValueError, "same shape"),
+], ids=["missing-data-range", "negative-data-range", "mismatched-shapes"])
+def test_peak_signal_to_noise_ratio_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        peak_signal_to_noise_ratio(*args, **kwargs)
 
 
-@pytest.mark.parametrize("data_range", [math.inf, math.nan])
-def test_ssim_rejects_non_finite_data_range(data_range):
-    with pytest.raises(ValueError, match="finite"):
-        structural_similarity(GOOD, GOOD, data_range=data_range)
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(np.array([1.0, np.nan]), np.array([1.0, 2.0])), ValueError, "NaN or infinite"),
+    (call(np.zeros(3), np.zeros(4)), ValueError, "same shape"),
+], ids=["nan", "mismatched-shapes"])
+def test_root_mean_squared_error_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        root_mean_squared_error(*args, **kwargs)
 
 
-def test_ssim_rejects_non_numeric_data_range():
-    with pytest.raises(TypeError, match="data_range"):
-        structural_similarity(GOOD, GOOD, data_range="1.0")
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(GOOD, GOOD, epsilon=0.0), ValueError, "epsilon"),
+    (call(GOOD, GOOD, epsilon=-1e-2), ValueError, "epsilon"),
+    (call(GOOD, GOOD, epsilon=math.inf), ValueError, "epsilon"),
+    (call(np.zeros(4), np.zeros(4)), ValueError, r"\(height, width\) or \(height, width, channels\)"),
+], ids=["zero-epsilon", "negative-epsilon", "infinite-epsilon", "wrong-dimensions"])
+def test_relative_mean_squared_error_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        relative_mean_squared_error(*args, **kwargs)
 
 
-def test_ssim_rejects_mismatched_shapes():
-    with pytest.raises(ValueError, match="same shape"):
-        structural_similarity(GOOD, GOOD[:, :15], data_range=1.0)
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(GOOD, GOOD), ValueError, r"\(height, width, 3\)"),
+], ids=["non-rgb"])
+def test_display_image_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        display_image(*args, **kwargs)
 
 
-@pytest.mark.parametrize("shape", [(6, 6), (10, 30), (30, 10)])
-def test_ssim_rejects_images_smaller_than_the_window(shape):
-    image = np.zeros(shape)
-    with pytest.raises(ValueError, match="at least 11x11"):
-        structural_similarity(image, image, data_range=1.0)
-
-
-def test_ssim_rejects_small_colour_images():
-    image = np.zeros((10, 16, 3))
-    with pytest.raises(ValueError, match="at least 11x11"):
-        structural_similarity(image, image, data_range=1.0, channel_axis=-1)
-
-
-def test_ssim_rejects_empty_images():
-    with pytest.raises(ValueError, match="empty"):
-        structural_similarity(np.zeros((0, 16)), np.zeros((0, 16)), data_range=1.0)
-
-
-def test_ssim_rejects_nan():
-    image = GOOD.copy()
-    image[3, 4] = np.nan
-    with pytest.raises(ValueError, match="NaN or infinite"):
-        structural_similarity(image, GOOD, data_range=1.0)
-
-
-def test_ssim_rejects_infinity_in_reference():
-    reference = GOOD.copy()
-    reference[0, 0] = np.inf
-    with pytest.raises(ValueError, match="reference contains 1 NaN or infinite"):
-        structural_similarity(GOOD, reference, data_range=1.0)
-
-
-def test_ssim_rejects_complex_input():
-    with pytest.raises(ValueError, match="real-valued"):
-        structural_similarity(GOOD + 0j, GOOD, data_range=1.0)
-
-
-def test_ssim_rejects_non_numeric_input():
-    with pytest.raises(TypeError, match="numeric"):
-        structural_similarity(np.full((16, 16), "a"), GOOD, data_range=1.0)
-
-
-def test_ssim_rejects_colour_image_without_channel_axis():
-    image = np.zeros((16, 16, 3))
-    with pytest.raises(ValueError, match="pass channel_axis"):
-        structural_similarity(image, image, data_range=1.0)
-
-
-def test_ssim_rejects_channel_axis_on_grayscale():
-    with pytest.raises(ValueError, match="must be 3-D"):
-        structural_similarity(GOOD, GOOD, data_range=1.0, channel_axis=-1)
-
-
-def test_ssim_rejects_out_of_range_channel_axis():
-    image = np.zeros((16, 16, 3))
-    with pytest.raises(ValueError, match=r"channel_axis must be None or in \[-3, 2\]"):
-        structural_similarity(image, image, data_range=1.0, channel_axis=3)
-
-
-def test_ssim_rejects_non_integer_channel_axis():
-    image = np.zeros((16, 16, 3))
-    with pytest.raises(TypeError, match="channel_axis"):
-        structural_similarity(image, image, data_range=1.0, channel_axis=1.5)
-
-
-def test_ssim_rejects_non_boolean_full():
-    with pytest.raises(TypeError, match="full"):
-        structural_similarity(GOOD, GOOD, data_range=1.0, full="yes")
-
-
-def test_psnr_requires_data_range():
-    with pytest.raises(ValueError, match="data_range is required"):
-        peak_signal_to_noise_ratio(GOOD, GOOD)
-
-
-def test_psnr_rejects_non_positive_data_range():
-    with pytest.raises(ValueError, match="greater than 0"):
-        peak_signal_to_noise_ratio(GOOD, GOOD, data_range=-2.0)
-
-
-def test_psnr_rejects_mismatched_shapes():
-    with pytest.raises(ValueError, match="same shape"):
-        peak_signal_to_noise_ratio(GOOD, GOOD.T[:3], data_range=1.0)
-
-
-def test_rmse_rejects_nan():
-    with pytest.raises(ValueError, match="NaN or infinite"):
-        root_mean_squared_error(np.array([1.0, np.nan]), np.array([1.0, 2.0]))
-
-
-def test_rmse_rejects_mismatched_shapes():
-    with pytest.raises(ValueError, match="same shape"):
-        root_mean_squared_error(np.zeros(3), np.zeros(4))
-
-
-@pytest.mark.parametrize("epsilon", [0.0, -1e-2, math.inf])
-def test_relative_mse_rejects_bad_epsilon(epsilon):
-    with pytest.raises(ValueError, match="epsilon"):
-        relative_mean_squared_error(GOOD, GOOD, epsilon=epsilon)
-
-
-def test_relative_mse_rejects_wrong_dimensions():
-    with pytest.raises(ValueError, match=r"\(height, width\) or \(height, width, channels\)"):
-        relative_mean_squared_error(np.zeros(4), np.zeros(4))
-
-
-def test_display_image_rejects_non_rgb():
-    with pytest.raises(ValueError, match=r"\(height, width, 3\)"):
-        display_image(GOOD, GOOD)
-
-
-def test_image_ssim_rejects_nan():
-    reference = hdr_image(10)
-    image = reference.copy()
-    image[1, 1, 1] = np.nan
-    with pytest.raises(ValueError, match="NaN or infinite"):
-        image_ssim(image, reference)
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(_with(hdr_image(10), (1, 1, 1), np.nan), hdr_image(10)), ValueError, "NaN or infinite"),
+], ids=["nan"])
+def test_image_ssim_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        image_ssim(*args, **kwargs)
 
 
 # --------------------------------------------------------------------------- HDR convention

@@ -195,38 +195,70 @@ def small_problem():
     return PartialFourier((20, 10), indices, dtype=np.float64), rng.standard_normal(50)
 
 
-@pytest.mark.parametrize("count, error, message", [(0, ValueError, "0 < K"), (-3, ValueError, "0 < K"),
-                                                   (50, ValueError, "0 < K"), (2.5, TypeError, "integer")])
-def test_bad_sparsity_is_refused(small_problem, count, error, message):
-    operator, samples = small_problem
-    with pytest.raises(error, match=message):
-        cosamp(operator, samples, count)
+def _unchanged(samples):
+    return samples
 
 
-def test_wrong_length_and_nan_are_refused(small_problem):
-    operator, samples = small_problem
-    with pytest.raises(ValueError, match="50 samples"):
-        cosamp(operator, samples[:-1], 5)
+def _drop_last(samples):
+    return samples[:-1]
+
+
+def _with_nan(samples):
     bad = samples.copy()
     bad[3] = np.nan
-    with pytest.raises(ValueError, match="NaN"):
-        omp(operator, bad, 5)
-    with pytest.raises(ValueError, match="complex"):
-        cosamp(operator, samples + 1j, 5)
+    return bad
 
 
-@pytest.mark.parametrize("indices, message", [([], "non-empty"), ([0, 200], "out of range"), ([-1, 3], "out of range"),
-                                              ([4, 7, 4], "repeated"), ([0.5, 2.0], "integers")])
-def test_bad_sample_indices_are_refused(indices, message):
-    with pytest.raises(ValueError, match=message):
-        PartialFourier((20, 10), np.array(indices))
+def _complex(samples):
+    return samples + 1j
 
 
-def test_bad_shape_and_dtype_are_refused():
-    with pytest.raises(ValueError, match="positive"):
-        PartialFourier((20, 0), [1])
-    with pytest.raises(ValueError, match="float32 or float64"):
-        PartialFourier((20, 10), [1], dtype=np.int32)
+# Rows: (how the 50 good samples of small_problem are spoiled, sparsity K).
+@pytest.mark.parametrize("arguments, error, message", [
+    ((_unchanged, 0), ValueError, "0 < K"),
+    ((_unchanged, -3), ValueError, "0 < K"),
+    ((_unchanged, 50), ValueError, "0 < K"),
+    ((_unchanged, 2.5), TypeError, "integer"),
+    ((_drop_last, 5), ValueError, "50 samples"),
+    ((_complex, 5), ValueError, "complex"),
+], ids=["sparsity-zero", "negative-sparsity", "sparsity-equal-to-samples", "non-integer-sparsity",
+        "wrong-length", "complex-samples"])
+def test_cosamp_invalid_input(small_problem, arguments, error, message):
+    operator, samples = small_problem
+    spoil, count = arguments
+    with pytest.raises(error, match=message):
+        cosamp(operator, spoil(samples), count)
+
+
+@pytest.mark.parametrize("arguments, error, message", [
+    ((_with_nan, 5), ValueError, "NaN"),
+], ids=["nan-sample"])
+def test_omp_invalid_input(small_problem, arguments, error, message):
+    operator, samples = small_problem
+    spoil, count = arguments
+    with pytest.raises(error, match=message):
+        omp(operator, spoil(samples), count)
+
+
+def call(*args, **kwargs):
+    """One row's arguments: positional and keyword."""
+    return args, kwargs
+
+
+@pytest.mark.parametrize("arguments, error, message", [
+    (call((20, 10), np.array([])), ValueError, "non-empty"),
+    (call((20, 10), np.array([0, 200])), ValueError, "out of range"),
+    (call((20, 10), np.array([-1, 3])), ValueError, "out of range"),
+    (call((20, 10), np.array([4, 7, 4])), ValueError, "repeated"),
+    (call((20, 10), np.array([0.5, 2.0])), ValueError, "integers"),
+    (call((20, 0), [1]), ValueError, "positive"),
+    (call((20, 10), [1], dtype=np.int32), ValueError, "float32 or float64"),
+], ids=["no-indices", "index-past-the-end", "negative-index", "repeated-index", "fractional-indices",
+        "zero-size-axis", "integer-dtype"])
+def test_partial_fourier_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        PartialFourier(*args, **kwargs)
 
 
 def test_repeated_samples_become_cell_means_and_recover():

@@ -13,14 +13,14 @@ def test_registry_has_the_scenes_of_the_issue():
         assert name in names
 
 
-def test_unknown_scene_lists_the_names():
-    with pytest.raises(ValueError, match="cornell-box"):
-        get_scene("sponza")
-
-
-def test_missing_scene_file_is_refused(tmp_path):
-    with pytest.raises(ValueError, match="does not exist"):
-        get_scene(str(tmp_path / "missing.xml"))
+@pytest.mark.parametrize("arguments, error, message", [
+    (("sponza",), ValueError, "cornell-box"),  # the message lists the names
+    (("{tmp_path}/missing.xml",), ValueError, "does not exist"),
+], ids=["unknown-scene", "missing-scene-file"])
+def test_get_scene_invalid_input(tmp_path, arguments, error, message):
+    arguments = [argument.format(tmp_path=tmp_path) for argument in arguments]
+    with pytest.raises(error, match=message):
+        get_scene(*arguments)
 
 
 def test_cornell_box_is_exactly_mitsubas(cornell):

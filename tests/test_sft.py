@@ -284,123 +284,65 @@ def test_lattice_reads_a_small_fraction_of_a_large_grid():
     np.testing.assert_array_equal(result.estimate.indices, expected)
 
 
-# -- bad input: one pytest.raises per branch -----------------------------------------
+# -- bad input: one row per branch -----------------------------------------------------
 
 
 def identity_oracle(indices):
     return indices.astype(float)
 
 
-def test_sparsity_must_be_positive():
-    with pytest.raises(ValueError, match=r"sparsity K must satisfy 0 < K <= n/2 = 512.*got 0"):
-        sft(identity_oracle, 1024, 0)
+def zeros_on_lattice(points):
+    return np.zeros(len(points))
 
 
-def test_sparsity_must_be_at_most_half_of_n():
-    with pytest.raises(ValueError, match=r"0 < K <= n/2 = 512.*got 513"):
-        sft(identity_oracle, 1024, 513)
+def call(*args, **kwargs):
+    """One row's arguments: positional and keyword."""
+    return args, kwargs
 
 
-def test_sparsity_must_be_an_integer():
-    with pytest.raises(TypeError, match="sparsity K must be an integer"):
-        sft(identity_oracle, 1024, 2.5)
-
-
-@pytest.mark.parametrize("size, error, message", [
-    (0, ValueError, "signal size n must be >= 1, got 0"),
-    (-8, ValueError, "signal size n must be >= 1, got -8"),
-    (1024.0, TypeError, "signal size n must be an integer"),
-])
-def test_bad_sizes_are_refused(size, error, message):
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(identity_oracle, 1024, 0), ValueError, r"sparsity K must satisfy 0 < K <= n/2 = 512.*got 0"),
+    (call(identity_oracle, 1024, 513), ValueError, r"0 < K <= n/2 = 512.*got 513"),
+    (call(identity_oracle, 1024, 2.5), TypeError, "sparsity K must be an integer"),
+    (call(identity_oracle, 0, 1), ValueError, "signal size n must be >= 1, got 0"),
+    (call(identity_oracle, -8, 1), ValueError, "signal size n must be >= 1, got -8"),
+    (call(identity_oracle, 1024.0, 1), TypeError, "signal size n must be an integer"),
+    (call(identity_oracle, 2 ** 31, 1), ValueError, "below 2\\*\\*31"),
+    (call(identity_oracle, 1024, 4, alpha=0.5), ValueError, r"alpha must be at least 1.*got 0.5"),
+    (call(lambda indices: np.zeros(indices.size + 1), 2 ** 14, 4), ValueError, "one value per index"),
+    (call(lambda indices: np.full(indices.size, np.nan), 2 ** 14, 4), ValueError, "NaN or infinite"),
+    (call(lambda indices: np.array(["a"] * indices.size), 2 ** 14, 4), ValueError, "real or complex numbers"),
+    (call(np.zeros(1024), 1024, 4), ValueError, "oracle must be callable"),
+    (call(identity_oracle, 1024, 4, window="hann"), ValueError, "window must be one of"),
+    (call(identity_oracle, 1024, 4, width=0.5), ValueError, "width must be at least 1"),
+    (call(identity_oracle, 1024, 4, snr=float("nan")), ValueError, "snr must be a number of decibels"),
+    (call(identity_oracle, 1024, 4, leakage=0.5), ValueError, r"leakage must be in \(0, 0.1\)"),
+    (call(identity_oracle, 1024, 4, dense_fraction=1.5), ValueError, r"dense_fraction must be in \(0, 1\]"),
+    (call(identity_oracle, 1024, 4, magnitude_hashes=-1), ValueError,
+     "magnitude_hashes must be >= 0, got -1"),
+    (call(identity_oracle, 1024, 4, shift_ratio=1), ValueError, "shift_ratio must be >= 2, got 1"),
+    (call(identity_oracle, 1024, 4, max_iterations=0), ValueError, "max_iterations must be >= 1, got 0"),
+    (call(identity_oracle, 1024, 4, max_iterations=2.0), TypeError, "max_iterations must be an integer"),
+    (call(identity_oracle, 1024, 4, alpha="4"), TypeError, "alpha must be a finite number"),
+], ids=["sparsity-zero", "sparsity-above-half-n", "non-integer-sparsity", "size-zero", "negative-size",
+        "non-integer-size", "size-beyond-index-arithmetic", "alpha-below-one", "oracle-returns-extra-values",
+        "oracle-returns-nan", "oracle-returns-strings", "oracle-not-callable", "unknown-window",
+        "width-below-one", "nan-snr", "large-leakage", "dense-fraction-above-one", "negative-magnitude-hashes",
+        "shift-ratio-one", "max-iterations-zero", "max-iterations-float", "alpha-string"])
+def test_sft_invalid_input(arguments, error, message):
+    args, kwargs = arguments
     with pytest.raises(error, match=message):
-        sft(identity_oracle, size, 1)
+        sft(*args, **kwargs)
 
 
-def test_size_must_fit_index_arithmetic():
-    with pytest.raises(ValueError, match="below 2\\*\\*31"):
-        sft(identity_oracle, 2 ** 31, 1)
-
-
-def test_alpha_must_be_at_least_one():
-    with pytest.raises(ValueError, match=r"alpha must be at least 1.*got 0.5"):
-        sft(identity_oracle, 1024, 4, alpha=0.5)
-
-
-def test_oracle_must_return_one_value_per_index():
-    with pytest.raises(ValueError, match="one value per index"):
-        sft(lambda indices: np.zeros(indices.size + 1), 2 ** 14, 4)
-
-
-def test_oracle_must_not_return_nan():
-    with pytest.raises(ValueError, match="NaN or infinite"):
-        sft(lambda indices: np.full(indices.size, np.nan), 2 ** 14, 4)
-
-
-def test_oracle_must_return_numbers():
-    with pytest.raises(ValueError, match="real or complex numbers"):
-        sft(lambda indices: np.array(["a"] * indices.size), 2 ** 14, 4)
-
-
-def test_oracle_must_be_callable():
-    with pytest.raises(ValueError, match="oracle must be callable"):
-        sft(np.zeros(1024), 1024, 4)
-
-
-def test_window_must_be_known():
-    with pytest.raises(ValueError, match="window must be one of"):
-        sft(identity_oracle, 1024, 4, window="hann")
-
-
-def test_width_must_be_at_least_one():
-    with pytest.raises(ValueError, match="width must be at least 1"):
-        sft(identity_oracle, 1024, 4, width=0.5)
-
-
-def test_snr_must_be_a_number():
-    with pytest.raises(ValueError, match="snr must be a number of decibels"):
-        sft(identity_oracle, 1024, 4, snr=float("nan"))
-
-
-def test_leakage_must_be_small():
-    with pytest.raises(ValueError, match=r"leakage must be in \(0, 0.1\)"):
-        sft(identity_oracle, 1024, 4, leakage=0.5)
-
-
-def test_dense_fraction_must_be_a_fraction():
-    with pytest.raises(ValueError, match=r"dense_fraction must be in \(0, 1\]"):
-        sft(identity_oracle, 1024, 4, dense_fraction=1.5)
-
-
-def test_magnitude_hashes_must_not_be_negative():
-    with pytest.raises(ValueError, match="magnitude_hashes must be an integer of at least 0"):
-        sft(identity_oracle, 1024, 4, magnitude_hashes=-1)
-
-
-def test_shift_ratio_must_be_at_least_two():
-    with pytest.raises(ValueError, match="shift_ratio must be an integer of at least 2"):
-        sft(identity_oracle, 1024, 4, shift_ratio=1)
-
-
-def test_max_iterations_must_be_positive():
-    with pytest.raises(ValueError, match="max_iterations must be an integer of at least 1"):
-        sft(identity_oracle, 1024, 4, max_iterations=0)
-
-
-def test_lattice_shape_must_not_have_a_zero_size():
-    with pytest.raises(ValueError, match="shape must be a non-empty sequence of positive integers"):
-        sft_lattice(lambda points: np.zeros(len(points)), (16, 0), 4)
-
-
-def test_lattice_shape_must_not_have_a_negative_size():
-    with pytest.raises(ValueError, match="positive integers, got \\(16, -4\\)"):
-        sft_lattice(lambda points: np.zeros(len(points)), (16, -4), 4)
-
-
-def test_lattice_function_must_return_one_value_per_point():
-    with pytest.raises(ValueError, match="one value per point"):
-        sft_lattice(lambda points: np.zeros((len(points), 2)), (64, 64), 4)
-
-
-def test_lattice_lowest_needs_one_frequency_per_axis():
-    with pytest.raises(ValueError, match="one frequency per axis"):
-        sft_lattice(lambda points: np.zeros(len(points)), (64, 64), 4, lowest=(0,))
+@pytest.mark.parametrize("arguments, error, message", [
+    (call(zeros_on_lattice, (16, 0), 4), ValueError, "shape must be a non-empty sequence of positive integers"),
+    (call(zeros_on_lattice, (16, -4), 4), ValueError, "positive integers, got \\(16, -4\\)"),
+    (call(lambda points: np.zeros((len(points), 2)), (64, 64), 4), ValueError, "one value per point"),
+    (call(zeros_on_lattice, (64, 64), 4, lowest=(0,)), ValueError, "one frequency per axis"),
+], ids=["zero-size-axis", "negative-size-axis", "function-returns-two-values-per-point",
+        "lowest-with-too-few-frequencies"])
+def test_sft_lattice_invalid_input(arguments, error, message):
+    args, kwargs = arguments
+    with pytest.raises(error, match=message):
+        sft_lattice(*args, **kwargs)

@@ -162,113 +162,57 @@ def test_energy_variant_is_the_index_of_squares():
 # ---------------------------------------------------------------- validation
 
 
-def test_empty_input_is_refused():
-    with pytest.raises(ValueError, match="empty"):
-        gini_index([])
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(magnitudes=[]), ValueError, "empty"),
+    (dict(magnitudes=np.array([1 + 1j, 2])), ValueError, r"np\.abs"),
+    (dict(magnitudes=[1.0, -0.5, 2.0]), ValueError, r"negative.*np\.abs"),
+    (dict(magnitudes=[1.0, np.nan, 2.0]), ValueError, r"NaN.*np\.abs"),
+    (dict(magnitudes=[1.0, np.inf]), ValueError, r"inf.*np\.abs"),
+    (dict(magnitudes=[1.0, -np.inf]), ValueError, "negative"),
+    (dict(magnitudes=np.array(["a", "b"])), TypeError, "numeric"),
+    (dict(magnitudes=[1.0, 2.0], energy="yes"), TypeError, "energy"),
+], ids=["empty", "complex", "negative", "nan", "inf", "negative-inf", "non-numeric", "non-bool-energy"])
+def test_gini_index_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        gini_index(**arguments)
 
 
-def test_complex_input_is_refused_with_the_abs_hint():
-    with pytest.raises(ValueError, match=r"np\.abs"):
-        gini_index(np.array([1 + 1j, 2]))
-
-
-def test_negative_input_is_refused_with_the_abs_hint():
-    with pytest.raises(ValueError, match=r"negative.*np\.abs"):
-        gini_index([1.0, -0.5, 2.0])
-
-
-def test_nan_input_is_refused():
-    with pytest.raises(ValueError, match=r"NaN.*np\.abs"):
-        gini_index([1.0, np.nan, 2.0])
-
-
-def test_infinite_input_is_refused():
-    with pytest.raises(ValueError, match=r"inf.*np\.abs"):
-        gini_index([1.0, np.inf])
-
-
-def test_negative_infinity_is_refused_as_negative():
-    with pytest.raises(ValueError, match="negative"):
-        gini_index([1.0, -np.inf])
-
-
-def test_non_numeric_input_is_refused():
-    with pytest.raises(TypeError, match="numeric"):
-        gini_index(np.array(["a", "b"]))
-
-
-def test_non_bool_energy_is_refused():
-    with pytest.raises(TypeError, match="energy"):
-        gini_index([1.0, 2.0], energy="yes")
-
-
-def test_energy_underflow_is_refused():
+@pytest.mark.parametrize("arguments, error, message", [
     # Squares below 1e-308 vanish in the float64 sums of the histogram (the exact path rescales first).
-    with pytest.raises(ValueError, match="rescale"):
-        gini_index_streaming(np.array([1e-200, 2e-200, 0.0]), energy=True, buckets=2**8)
+    (dict(chunks=np.array([1e-200, 2e-200, 0.0]), energy=True, buckets=2**8), ValueError, "rescale"),
+    (dict(chunks=[np.zeros(0), []], buckets=16), ValueError, "no values"),
+    (dict(chunks=[np.ones(10), np.array([1.0, -1e-50])], buckets=16), ValueError, r"negative.*np\.abs"),
+    (dict(chunks=[np.array([1.0, np.nan], dtype=np.float32)], buckets=16), ValueError, "NaN"),
+    (dict(chunks=[np.array([1.0, np.inf])], buckets=16), ValueError, "inf"),
+    (dict(chunks=[np.array([1.0, 1e300])], buckets=16), ValueError, "rescale"),
+    (dict(chunks=[np.array([1.0 + 2.0j])], buckets=16), ValueError, r"np\.abs"),
+], ids=["energy-underflow", "no-values", "negative", "nan", "inf", "beyond-float32", "complex"])
+def test_gini_index_streaming_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        gini_index_streaming(**arguments)
 
 
-@pytest.mark.parametrize("buckets", [3, 1, 2**32])
-def test_bad_bucket_counts_are_refused(buckets):
-    with pytest.raises(ValueError, match="power of two"):
-        GiniHistogram(buckets=buckets)
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(buckets=3), ValueError, "power of two"),
+    (dict(buckets=1), ValueError, "power of two"),
+    (dict(buckets=2**32), ValueError, "power of two"),
+    (dict(buckets=1024.0), TypeError, "buckets"),
+    (dict(buckets=16, piece_size=0), ValueError, "piece_size"),
+    (dict(buckets=16, piece_size=2.5), TypeError, "piece_size"),
+], ids=["buckets-3", "buckets-1", "buckets-2**32", "non-integer-buckets", "piece-size-zero", "fractional-piece-size"])
+def test_gini_histogram_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        GiniHistogram(**arguments)
 
 
-def test_non_integer_bucket_count_is_refused():
-    with pytest.raises(TypeError, match="buckets"):
-        GiniHistogram(buckets=1024.0)
-
-
-def test_bad_piece_sizes_are_refused():
-    with pytest.raises(ValueError, match="piece_size"):
-        GiniHistogram(buckets=16, piece_size=0)
-    with pytest.raises(TypeError, match="piece_size"):
-        GiniHistogram(buckets=16, piece_size=2.5)
-
-
-def test_streaming_without_values_is_refused():
-    with pytest.raises(ValueError, match="no values"):
-        gini_index_streaming([np.zeros(0), []], buckets=16)
-
-
-def test_streaming_refuses_negative_values():
-    with pytest.raises(ValueError, match=r"negative.*np\.abs"):
-        gini_index_streaming([np.ones(10), np.array([1.0, -1e-50])], buckets=16)
-
-
-def test_streaming_refuses_nan():
-    with pytest.raises(ValueError, match="NaN"):
-        gini_index_streaming([np.array([1.0, np.nan], dtype=np.float32)], buckets=16)
-
-
-def test_streaming_refuses_inf():
-    with pytest.raises(ValueError, match="inf"):
-        gini_index_streaming([np.array([1.0, np.inf])], buckets=16)
-
-
-def test_streaming_refuses_values_beyond_float32():
-    with pytest.raises(ValueError, match="rescale"):
-        gini_index_streaming([np.array([1.0, 1e300])], buckets=16)
-
-
-def test_streaming_refuses_complex_values():
-    with pytest.raises(ValueError, match=r"np\.abs"):
-        gini_index_streaming([np.array([1.0 + 2.0j])], buckets=16)
-
-
-def test_histogram_refuses_weights_of_another_shape():
-    with pytest.raises(ValueError, match="shape"):
-        GiniHistogram(buckets=16).add(np.ones(4), weights=np.ones(3, dtype=int))
-
-
-def test_histogram_refuses_negative_weights():
-    with pytest.raises(ValueError, match="non-negative"):
-        GiniHistogram(buckets=16).add(np.ones(3), weights=np.array([1, -1, 2]))
-
-
-def test_histogram_refuses_fractional_weights():
-    with pytest.raises(TypeError, match="integers"):
-        GiniHistogram(buckets=16).add(np.ones(3), weights=np.full(3, 0.5))
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(values=np.ones(4), weights=np.ones(3, dtype=int)), ValueError, "shape"),
+    (dict(values=np.ones(3), weights=np.array([1, -1, 2])), ValueError, "non-negative"),
+    (dict(values=np.ones(3), weights=np.full(3, 0.5)), TypeError, "integers"),
+], ids=["weights-of-another-shape", "negative-weights", "fractional-weights"])
+def test_gini_histogram_add_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        GiniHistogram(buckets=16).add(**arguments)
 
 
 # ---------------------------------------------------------------- streaming bound
@@ -445,44 +389,42 @@ def test_streaming_a_memory_mapped_signal_leaves_no_scratch_file(tmp_path):
     assert os.listdir(scratch) == []
 
 
-def test_signal_validation():
-    signal = _random_signal((4, 3))
-    with pytest.raises(ValueError, match="domain"):
-        signal_gini(signal, domain="wavelet")
-    with pytest.raises(ValueError, match="memory_limit_bytes"):
-        signal_gini(signal, domain="canonical", memory_limit_bytes=0)
-    with pytest.raises(ValueError, match="too small"):
-        signal_gini(_random_signal((16, 12, 8, 10)), domain="fourier", memory_limit_bytes=1000, buckets=2**12)
-    with pytest.raises(ValueError, match="temporary_directory"):
-        signal_gini(signal, domain="fourier", temporary_directory="/nonexistent/folder")
-    with pytest.raises(TypeError, match="Signal"):
-        signal_gini(np.ones((4, 3, 3)), domain="canonical")
-    with pytest.raises(TypeError, match="progress"):
-        signal_gini(signal, domain="canonical", progress=1)
-
-
-def test_complex_signal_data_is_refused():
-    signal = Signal(data=np.ones((4, 3, 3), dtype=np.complex64), kind="dof", axes=("x", "y"))
-    with pytest.raises(ValueError, match="real"):
-        signal_gini(signal, domain="canonical")
-
-
-def test_empty_signal_grid_is_refused():
-    signal = Signal(data=np.ones((0, 3, 3), dtype=np.float32), kind="dof", axes=("x", "y"))
-    with pytest.raises(ValueError, match="no cells"):
-        signal_gini(signal, domain="canonical")
-
-
-@pytest.mark.parametrize("domain", DOMAINS)
-def test_non_finite_signal_values_are_refused(domain):
-    signal = _random_signal((6, 5, 4, 3))
-    signal.data[1, 2, 3, 0, 1] = np.nan
-    with pytest.raises(ValueError, match="NaN"):
-        signal_gini(signal, domain=domain)
-    with pytest.raises(ValueError, match="NaN"):
-        signal_gini(_with_nan(_random_signal((16, 12, 8, 10))), domain=domain, **FORCE_STREAMING)
-
-
 def _with_nan(signal):
     signal.data[3, 2, 1, 0, 2] = np.nan
     return signal
+
+
+def _small_with_nan():
+    signal = _random_signal((6, 5, 4, 3))
+    signal.data[1, 2, 3, 0, 1] = np.nan
+    return signal
+
+
+_SMALL_SIGNAL = _random_signal((4, 3))
+
+
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(signal=_SMALL_SIGNAL, domain="wavelet"), ValueError, "domain"),
+    (dict(signal=_SMALL_SIGNAL, domain="canonical", memory_limit_bytes=0), ValueError, "memory_limit_bytes"),
+    (dict(signal=_random_signal((16, 12, 8, 10)), domain="fourier", memory_limit_bytes=1000, buckets=2**12),
+     ValueError, "too small"),
+    (dict(signal=_SMALL_SIGNAL, domain="fourier", temporary_directory="/nonexistent/folder"),
+     ValueError, "temporary_directory"),
+    (dict(signal=np.ones((4, 3, 3)), domain="canonical"), TypeError, "Signal"),
+    (dict(signal=_SMALL_SIGNAL, domain="canonical", progress=1), TypeError, "progress"),
+    (dict(signal=Signal(data=np.ones((4, 3, 3), dtype=np.complex64), kind="dof", axes=("x", "y")),
+          domain="canonical"), ValueError, "real"),
+    (dict(signal=Signal(data=np.ones((0, 3, 3), dtype=np.float32), kind="dof", axes=("x", "y")),
+          domain="canonical"), ValueError, "no cells"),
+    (dict(signal=_small_with_nan(), domain="canonical"), ValueError, "NaN"),
+    (dict(signal=_small_with_nan(), domain="fourier"), ValueError, "NaN"),
+    (dict(signal=_with_nan(_random_signal((16, 12, 8, 10))), domain="canonical", **FORCE_STREAMING),
+     ValueError, "NaN"),
+    (dict(signal=_with_nan(_random_signal((16, 12, 8, 10))), domain="fourier", **FORCE_STREAMING),
+     ValueError, "NaN"),
+], ids=["unknown-domain", "zero-memory-limit", "memory-limit-too-small", "missing-temporary-directory",
+        "not-a-signal", "non-bool-progress", "complex-data", "empty-grid", "nan-canonical", "nan-fourier",
+        "nan-canonical-streamed", "nan-fourier-streamed"])
+def test_signal_gini_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        signal_gini(**arguments)

@@ -36,21 +36,28 @@ def test_gamma_mapping_round_trip(gamma):
     assert np.allclose(inverse_gamma_map(mapped, gamma, data.max()), data, rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.parametrize("gamma", [0.0, -0.5, float("nan"), float("inf"), True])
-def test_gamma_must_be_positive(gamma):
-    with pytest.raises(ValueError, match="gamma"):
-        gamma_map(np.ones(4), gamma)
+@pytest.mark.parametrize("arguments, error, message", [
+    ((np.ones(4), 0.0), ValueError, "gamma"),
+    ((np.ones(4), -0.5), ValueError, "gamma"),
+    ((np.ones(4), float("nan")), ValueError, "gamma"),
+    ((np.ones(4), float("inf")), ValueError, "gamma"),
+    ((np.ones(4), True), ValueError, "gamma"),
+    ((np.array([1.0, -1.0]), 0.5), ValueError, "non-negative"),
+], ids=["gamma-zero", "negative-gamma", "nan-gamma", "infinite-gamma", "boolean-gamma", "negative-values"])
+def test_gamma_map_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        gamma_map(*arguments)
 
 
-def test_gamma_mapping_rejects_negative_values():
-    with pytest.raises(ValueError, match="non-negative"):
-        gamma_map(np.array([1.0, -1.0]), 0.5)
-
-
-@pytest.mark.parametrize("fraction", [0.0, -0.1, 1.5, float("nan")])
-def test_fraction_must_be_in_the_unit_interval(fraction):
-    with pytest.raises(ValueError, match=r"\(0, 1\]"):
-        hard_threshold_image(_signal_data(), fraction)
+@pytest.mark.parametrize("arguments, error, message", [
+    ((_signal_data(), 0.0), ValueError, r"\(0, 1\]"),
+    ((_signal_data(), -0.1), ValueError, r"\(0, 1\]"),
+    ((_signal_data(), 1.5), ValueError, r"\(0, 1\]"),
+    ((_signal_data(), float("nan")), ValueError, r"\(0, 1\]"),
+], ids=["fraction-zero", "negative-fraction", "fraction-above-one", "nan-fraction"])
+def test_hard_threshold_image_invalid_input(arguments, error, message):
+    with pytest.raises(error, match=message):
+        hard_threshold_image(*arguments)
 
 
 @pytest.mark.parametrize("gamma", [1.0, 0.3])
@@ -98,9 +105,12 @@ def test_analyze_writes_the_tables_and_figures(tmp_path):
     assert time_gini[0.5] < time_gini[1.0]
 
 
-@pytest.mark.parametrize("options, message", [(dict(gammas=(0.0,)), "gamma"), (dict(fractions=(2.0,)), "fraction"),
-                                              (dict(gammas=()), "gamma")])
-def test_analyze_rejects_bad_parameters(tmp_path, options, message):
+@pytest.mark.parametrize("arguments, error, message", [
+    (dict(gammas=(0.0,)), ValueError, "gamma"),
+    (dict(fractions=(2.0,)), ValueError, "fraction"),
+    (dict(gammas=()), ValueError, "gamma"),
+], ids=["gamma-zero", "fraction-above-one", "no-gammas"])
+def test_analyze_signal_invalid_input(tmp_path, arguments, error, message):
     signal = Signal(data=_signal_data(), kind="dof", axes=("x", "y", "lens_u", "lens_v"))
-    with pytest.raises(ValueError, match=message):
-        analyze_signal(signal, tmp_path, progress=False, **options)
+    with pytest.raises(error, match=message):
+        analyze_signal(signal, tmp_path, progress=False, **arguments)

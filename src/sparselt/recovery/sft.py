@@ -217,17 +217,11 @@ def _check_sparsity(sparsity, n):
 
 
 def _check_positive(name, value, minimum, allowed):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number {allowed}, got {value!r}")
-    if value < minimum:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a finite number {allowed}, got {value!r}")
+    if not math.isfinite(value) or value < minimum:
         raise ValueError(f"{name} must be {allowed}, got {value}")
     return float(value)
-
-
-def _check_integer(name, value, minimum):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer of at least {minimum}, got {value!r}")
-    return int(value)
 
 
 def _check_snr(snr):
@@ -564,11 +558,11 @@ class SparseFourierTransform:
             phase_error = max(phase_error, 1.5 / math.sqrt(max(snr_linear * alpha, 1.0)))
         if shift_ratio is None:
             shift_ratio = int(2 ** max(1, math.floor(math.log2(math.pi / (3 * phase_error)))))
-        shift_ratio = _check_integer("shift_ratio", shift_ratio, 2)
-        magnitude_hashes = _check_integer("magnitude_hashes", 0 if magnitude_hashes is None else magnitude_hashes, 0)
+        shift_ratio = check_integer("shift_ratio", shift_ratio, 2)
+        magnitude_hashes = check_integer("magnitude_hashes", 0 if magnitude_hashes is None else magnitude_hashes, 0)
         if max_iterations is None:
             max_iterations = 12 + 2 * int(math.log2(sparsity + 1))
-        max_iterations = _check_integer("max_iterations", max_iterations, 1)
+        max_iterations = check_integer("max_iterations", max_iterations, 1)
         dense_fraction = _check_positive("dense_fraction", dense_fraction, 0.0, "in (0, 1]")
         if not 0 < dense_fraction <= 1:
             raise ValueError(f"dense_fraction must be in (0, 1], got {dense_fraction}")
