@@ -46,7 +46,7 @@ class IndexedValues:
     def missing(self, indices):
         """The distinct indices among ``indices`` not read yet, sorted."""
         indices = np.asarray(indices, dtype=np.int64)
-        return np.unique(indices[self._slots[indices] < 0])
+        return _distinct_sorted(indices[self._slots[indices] < 0])
 
     def add(self, indices, values):
         """Record ``values`` at new, distinct ``indices``."""
@@ -65,3 +65,17 @@ class IndexedValues:
     def get(self, indices):
         """Values at ``indices``, all of which were read."""
         return self._values[self._slots[np.asarray(indices, dtype=np.int64)]]
+
+
+def _distinct_sorted(values):
+    """``numpy.unique`` by sorting (NumPy 2's hash-based unique is ~10x slower on millions of int64),
+    free when the values are already strictly increasing (what the SFT asks for)."""
+    if values.size < 2:
+        return values.copy()
+    if np.all(values[1:] > values[:-1]):
+        return values.copy()
+    ordered = np.sort(values)
+    keep = np.empty(ordered.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(ordered[1:], ordered[:-1], out=keep[1:])
+    return ordered[keep]
