@@ -4,8 +4,10 @@ The Sparse Fourier Transform reads a few percent of a signal of up to 2^31
 entries, one hash at a time, and must never read an index twice (the oracle is
 a renderer: every read costs path samples). :class:`IndexedValues` keeps the
 values in the order they were read and an ``int32`` slot per signal index
-(``-1`` = not read), so looking up and adding ``m`` indices costs ``O(m)``
-however many were read before.
+(``0`` = not read, else position + 1), so looking up and adding ``m`` indices
+costs ``O(m)`` however many were read before. The slot table is allocated
+zeroed (``calloc``): the operating system maps its pages only where indices
+are read, so creating it costs nothing for a sparse read.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ class IndexedValues:
 
     def __init__(self, size, value_shape=(), dtype=np.complex128):
         self.size = int(size)
-        self._slots = np.full(self.size, -1, dtype=np.int32)
+        self._slots = np.zeros(self.size, dtype=np.int32)
         self._values = np.zeros((max(16, 0),) + tuple(value_shape), dtype=dtype)
         self._indices = np.zeros(16, dtype=np.int64)
         self.count = 0
@@ -46,7 +48,7 @@ class IndexedValues:
     def missing(self, indices):
         """The distinct indices among ``indices`` not read yet, sorted."""
         indices = np.asarray(indices, dtype=np.int64)
-        return _distinct_sorted(indices[self._slots[indices] < 0])
+        return _distinct_sorted(indices[self._slots[indices] == 0])
 
     def add(self, indices, values):
         """Record ``values`` at new, distinct ``indices``."""
@@ -59,12 +61,12 @@ class IndexedValues:
             self._indices = np.concatenate([self._indices, np.zeros(capacity - self._indices.size, np.int64)])
         self._values[self.count:needed] = values
         self._indices[self.count:needed] = indices
-        self._slots[indices] = np.arange(self.count, needed, dtype=np.int32)
+        self._slots[indices] = np.arange(self.count + 1, needed + 1, dtype=np.int32)
         self.count = needed
 
     def get(self, indices):
         """Values at ``indices``, all of which were read."""
-        return self._values[self._slots[np.asarray(indices, dtype=np.int64)]]
+        return self._values[self._slots[np.asarray(indices, dtype=np.int64)] - 1]
 
 
 def _distinct_sorted(values):
