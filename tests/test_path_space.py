@@ -175,3 +175,21 @@ def test_table61_command_writes_the_table_beside_the_thesis(tmp_path):
     stamp = (out / "records" / "alpha4_spp1.json").stat().st_mtime_ns
     assert main(arguments) == 0  # resumes: nothing recomputed
     assert (out / "records" / "alpha4_spp1.json").stat().st_mtime_ns == stamp
+
+
+@pytest.mark.parametrize("dense", [True, False], ids=["dense-slot-table", "sorted-indices"])
+def test_indexed_values_reads_each_index_once_in_both_modes(monkeypatch, dense):
+    from sparselt.recovery import sample_cache
+
+    monkeypatch.setattr(sample_cache, "DENSE_LIMIT", 10**6 if dense else 10)
+    store = sample_cache.IndexedValues(1000, (3,), np.float64)
+    assert store.dense is dense
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(1000, 3))
+    for _ in range(5):
+        asked = rng.integers(0, 1000, 300)  # repeats and indices read before
+        missing = store.missing(asked)
+        assert np.all(np.diff(missing) > 0) and not np.isin(missing, store.indices).any()
+        store.add(missing, truth[missing])
+        assert np.array_equal(store.get(asked), truth[asked])
+    assert np.unique(store.indices).size == store.count

@@ -3,16 +3,21 @@
 The Sparse Fourier Transform reads a few percent of a signal of up to 2^31
 entries, one hash at a time, and must never read an index twice (the oracle is
 a renderer: every read costs path samples). :class:`IndexedValues` keeps the
-values in the order they were read and an ``int32`` slot per signal index
-(``0`` = not read, else position + 1), so looking up and adding ``m`` indices
-costs ``O(m)`` however many were read before. The slot table is allocated
-zeroed (``calloc``): the operating system maps its pages only where indices
-are read, so creating it costs nothing for a sparse read.
+values in the order they were read. Up to :data:`DENSE_LIMIT` entries it also
+keeps an ``int32`` slot per signal index (``0`` = not read, else position + 1),
+so looking up and adding ``m`` indices costs ``O(m)`` however many were read
+before. Beyond that a dense table would cost ``O(n)`` memory traffic (a
+sparse read of a 6.5e8-cell signal touches most of its pages), so the read
+indices are kept sorted instead: ``O(m log m)`` lookups and an ``O(count)``
+merge per added batch, which the SFT makes once per hash.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+#: Largest signal given a dense slot table (256 MB of int32).
+DENSE_LIMIT = 1 << 26
 
 
 class IndexedValues:
@@ -30,8 +35,11 @@ class IndexedValues:
 
     def __init__(self, size, value_shape=(), dtype=np.complex128):
         self.size = int(size)
-        self._slots = np.zeros(self.size, dtype=np.int32)
-        self._values = np.zeros((max(16, 0),) + tuple(value_shape), dtype=dtype)
+        self.dense = self.size <= DENSE_LIMIT
+        self._slots = np.zeros(self.size if self.dense else 0, dtype=np.int32)
+        self._sorted = np.zeros(0, dtype=np.int64)  # sparse mode: read indices, sorted ...
+        self._positions = np.zeros(0, dtype=np.int64)  # ... and where their values are
+        self._values = np.zeros((16,) + tuple(value_shape), dtype=dtype)
         self._indices = np.zeros(16, dtype=np.int64)
         self.count = 0
 
@@ -45,13 +53,19 @@ class IndexedValues:
         """Every index read, in reading order."""
         return self._indices[:self.count]
 
+    def _known(self, indices):
+        if self.dense:
+            return self._slots[indices] != 0
+        where = np.minimum(np.searchsorted(self._sorted, indices), max(self._sorted.size - 1, 0))
+        return self._sorted[where] == indices if self._sorted.size else np.zeros(indices.size, dtype=bool)
+
     def missing(self, indices):
         """The distinct indices among ``indices`` not read yet, sorted."""
         indices = np.asarray(indices, dtype=np.int64)
-        return _distinct_sorted(indices[self._slots[indices] == 0])
+        return _distinct_sorted(indices[~self._known(indices)])
 
     def add(self, indices, values):
-        """Record ``values`` at new, distinct ``indices``."""
+        """Record ``values`` at new, distinct, sorted ``indices``."""
         indices = np.asarray(indices, dtype=np.int64)
         needed = self.count + indices.size
         if needed > self._indices.size:
@@ -61,12 +75,21 @@ class IndexedValues:
             self._indices = np.concatenate([self._indices, np.zeros(capacity - self._indices.size, np.int64)])
         self._values[self.count:needed] = values
         self._indices[self.count:needed] = indices
-        self._slots[indices] = np.arange(self.count + 1, needed + 1, dtype=np.int32)
+        positions = np.arange(self.count, needed, dtype=np.int64)
+        if self.dense:
+            self._slots[indices] = positions + 1
+        else:
+            insert_at = np.searchsorted(self._sorted, indices)
+            self._sorted = np.insert(self._sorted, insert_at, indices)
+            self._positions = np.insert(self._positions, insert_at, positions)
         self.count = needed
 
     def get(self, indices):
         """Values at ``indices``, all of which were read."""
-        return self._values[self._slots[np.asarray(indices, dtype=np.int64)] - 1]
+        indices = np.asarray(indices, dtype=np.int64)
+        if self.dense:
+            return self._values[self._slots[indices] - 1]
+        return self._values[self._positions[np.searchsorted(self._sorted, indices)]]
 
 
 def _distinct_sorted(values):
