@@ -191,6 +191,16 @@ def build_parser():
     table.add_argument("--no-progress", action="store_true", help="hide progress output")
     table.set_defaults(handler=_table61)
 
+    reproduce = commands.add_parser(
+        "reproduce", help="the thesis's experiments as one HTML page, the thesis's numbers beside ours",
+        description="Run the experiments of a thesis chapter (resumable) and write DIR/index.html: each thesis "
+                    "table beside our measurements, figures, verdicts, wall times and provenance.")
+    reproduce.add_argument("--chapter", default="all", help="4, 5, 6, 7, 8 or all (default: all reproduced so far)")
+    reproduce.add_argument("--scale", default="quick", help="quick (minutes) or thesis (the thesis's sizes; long)")
+    reproduce.add_argument("--out", required=True, help="output folder (rerun to resume)")
+    reproduce.add_argument("--no-progress", action="store_true", help="hide progress output")
+    reproduce.set_defaults(handler=_reproduce)
+
     methods = commands.add_parser("methods", help="list the comparison methods",
                                   description="List the registered comparison methods, the kinds they support and what they do.")
     methods.set_defaults(handler=_list_methods)
@@ -315,6 +325,14 @@ def _table61(arguments):
     with open(os.path.join(arguments.out, "table_6_1.md"), encoding="utf-8") as handle:
         print(handle.read())
     print(f"wrote {arguments.out}")
+    return 0
+
+
+def _reproduce(arguments):
+    from .experiments.reproduce import reproduce
+
+    path = reproduce(arguments.chapter, arguments.scale, arguments.out, progress=not arguments.no_progress)
+    print(f"open {os.path.abspath(path)}")
     return 0
 
 

@@ -51,6 +51,7 @@ from ..rendering import mitsuba_backend
 from ..rendering.baseline import check_wavefront
 from ..rendering.layout import path_layout
 from ..rendering.scenes import SceneSpec, get_scene
+from ..report.comparison import write_comparison_page
 from . import compare_report
 
 KINDS = ("dof", "indirect", "path", "path-indirect")
@@ -452,6 +453,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     compare_report.write_table_8(os.path.join(out, "table_8.md"), rows, spec.name, config)
     compare_report.write_equal_time_table(os.path.join(out, "equal_time.md"), rows, RELMSE_EPSILON)
     compare_report.write_table_6(os.path.join(out, "table_6.md"), rows, spec.name, config)
+    write_comparison_page(out, rows, config, spec.name, compare_report.THESIS_TABLES, environment_record())
     report_seconds = time.perf_counter() - report_start
     total = time.perf_counter() - started
     harness = max(0.0, total - method_seconds - reference_seconds)

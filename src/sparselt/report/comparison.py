@@ -1,0 +1,74 @@
+"""The report page of one ``sparselt compare`` run: Tables 8.1/8.2 beside the thesis, equal-time verdicts, figures."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .page import Figure, Section, Table, write_page
+
+
+def _mean(group, key):
+    return float(np.mean([row[key] for row in group]))
+
+
+def equal_time_verdicts(rows):
+    """One sentence per method from its relMSE against PT's at the same time (mean of the ratios over spp)."""
+    verdicts = []
+    for method in dict.fromkeys(row["method"] for row in rows):
+        if method == "pt":
+            continue
+        group = [row for row in rows if row["method"] == method and row.get("relmse_pt_equal_time") not in ("", None)]
+        if not group:
+            verdicts.append(f"{method}: PT's runs do not reach its time, so no equal-time comparison.")
+            continue
+        ratio = float(np.mean([row["relmse"] / row["relmse_pt_equal_time"] for row in group]))
+        spps = sorted({row["spp"] for row in group})
+        if ratio < 1:
+            verdicts.append(f"{method} beats PT at equal time by {100 * (1 - ratio):.0f}% relMSE "
+                            f"(mean over spp {', '.join(map(str, spps))}).")
+        else:
+            verdicts.append(f"{method} loses to PT at equal time: {ratio:.2f}x PT's relMSE "
+                            f"(mean over spp {', '.join(map(str, spps))}).")
+    return verdicts
+
+
+def write_comparison_page(out, rows, config, scene, thesis_tables, provenance):
+    """``out/index.html`` for a comparison folder; returns its path."""
+    thesis = thesis_tables.get(scene) if config.kind == "dof" else None
+    tables = []
+    for method in dict.fromkeys(row["method"] for row in rows):
+        table_rows = []
+        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
+            group = [row for row in rows if row["method"] == method and row["spp"] == spp]
+            cells = [f"{_mean(group, 'seconds_total'):.3f}", f"{_mean(group, 'seconds_sampling'):.3f}",
+                     f"{_mean(group, 'seconds_reconstruction'):.3f}", f"{_mean(group, 'seconds_integration'):.3f}",
+                     f"{_mean(group, 'ssim'):.3f}", f"{_mean(group, 'relmse'):.4g}"]
+            if thesis:
+                values = thesis[2].get(spp) if method.startswith("cosamp") else None
+                cells.append(" / ".join(f"{value:g}" for value in values) if values else "-")
+            table_rows.append((f"{method}, {spp} spp", cells))
+        columns = ["total s", "sampling s", "reconstruction s", "integration s", "SSIM", "relMSE"]
+        kinds = ["ours"] * 6
+        if thesis:
+            columns.append(f"thesis Table {thesis[0]} ({thesis[1]}): total / sampling / CoSaMP / integration s")
+            kinds.append("thesis")
+        caption = (f"Table {thesis[0]} layout: execution times, {scene}" if thesis
+                   else f"Execution times and quality, {scene}") + f" ({method})"
+        tables.append(Table(caption=caption, columns=columns, kinds=kinds, rows=table_rows))
+    figures = [Figure(name, caption) for name, caption in (
+        ("quality_vs_time.png", "Figures 8.1/8.3 layout: relMSE and SSIM against time"),
+        ("image_grid.png", "Figures 8.2/8.4 layout: the methods at matched time beside the reference"),
+        ("crop_grid.png", "Details where the methods disagree most"))
+        if os.path.exists(os.path.join(out, name))]
+    links = [(name, name) for name in ("results.csv", "equal_time.md", "table_8.md", "table_6.md", "compare.json")
+             if os.path.exists(os.path.join(out, name))]
+    section = Section(
+        title=f"{scene}, kind {config.kind}, grid {'x'.join(map(str, config.shape))}, "
+              f"image {'x'.join(map(str, config.output_resolution))}",
+        introduction="Every method at every budget against a cached Mitsuba reference; relMSE epsilon 0.01; "
+                     "equal time means every second counted (pilot samples, reconstruction, filtering), "
+                     "kernels warmed first.",
+        tables=tables, figures=figures, verdicts=equal_time_verdicts(rows), links=links)
+    return write_page(os.path.join(out, "index.html"), f"sparselt compare: {scene}", [section], provenance)

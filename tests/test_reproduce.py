@@ -1,0 +1,112 @@
+"""Issue 14: `sparselt reproduce` writes one self-contained page that a real browser renders."""
+
+import os
+import re
+import shutil
+import subprocess
+from html.parser import HTMLParser
+
+import pytest
+
+from sparselt.cli import main
+from sparselt.experiments.reproduce import reproduce
+from sparselt.report import Figure, Section, write_page
+
+
+@pytest.fixture(scope="session")
+def chromium():
+    """Debian's chromium, installed when missing (apt as root)."""
+    browser = shutil.which("chromium")
+    if browser is None and os.geteuid() == 0 and shutil.which("apt-get"):
+        environment = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+        install = ["apt-get", "install", "-y", "-q", "chromium"]
+        if subprocess.run(install, capture_output=True, env=environment, timeout=900).returncode != 0:
+            subprocess.run(["apt-get", "update", "-q"], capture_output=True, env=environment, timeout=900)
+            subprocess.run(install, capture_output=True, env=environment, timeout=900)
+        browser = shutil.which("chromium")
+    if browser is None:
+        pytest.skip("chromium is not installed and could not be installed here (needs apt as root)")
+    return browser
+
+
+def rendered_dom(browser, page):
+    """The page's DOM after load in headless chromium (its inline script has marked the images by then)."""
+    result = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files",
+                             "--virtual-time-budget=10000", "--dump-dom", f"file://{os.path.abspath(page)}"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    return result.stdout
+
+
+class _Collector(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.links, self.images, self.tables, self.cells = [], [], [], []
+
+    def handle_starttag(self, tag, attributes):
+        attributes = dict(attributes)
+        if tag == "a":
+            self.links.append(attributes.get("href"))
+        elif tag == "img":
+            self.images.append(attributes.get("src"))
+        elif tag == "table":
+            self.tables.append([])
+        elif tag == "td" and self.tables:
+            self.tables[-1].append(attributes.get("class", ""))
+
+
+def test_reproduce_chapter_4_quick_page_loads_in_a_browser(tmp_path, chromium):
+    out = tmp_path / "report"
+    page = reproduce("4", "quick", out, progress=False)
+    dom = rendered_dom(chromium, page)
+    body = re.search(r"<body([^>]*)>", dom).group(1)
+    assert re.search(r'data-images="(\d+)"', body) and int(re.search(r'data-images="(\d+)"', body).group(1)) >= 2
+    assert 'data-broken-images=""' in body  # every image loaded: naturalWidth > 0
+    parsed = _Collector()
+    parsed.feed(dom)
+    assert parsed.tables and all("thesis" in table and "ours" in table for table in parsed.tables)
+    for target in parsed.links + parsed.images:  # every link and image resolves, relative to the page
+        assert not target.startswith(("http:", "https:", "/")), target
+        assert (out / target).exists(), target
+    assert "Table 4.1" in dom and "O(P \\log(P))" in dom and "faster than sum integration" in dom
+    stamp = (out / "chapter4" / "section.json").stat().st_mtime_ns
+    assert main(["reproduce", "--chapter", "4", "--out", str(out), "--no-progress"]) == 0  # resumes
+    assert (out / "chapter4" / "section.json").stat().st_mtime_ns == stamp
+
+
+def test_a_broken_image_is_reported_by_the_page(tmp_path, chromium):
+    """The self-check can fail: a file that is not an image is listed as broken."""
+    (tmp_path / "not-an-image.png").write_bytes(b"not a png")
+    page = write_page(str(tmp_path / "index.html"), "t", [Section(title="s", figures=[Figure("not-an-image.png", "x")])],
+                      {"versions": {}, "git": None})
+    assert 'data-broken-images="not-an-image.png"' in rendered_dom(chromium, page)
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (("9", "quick"), "chapter must be one of"),
+    (("4", "huge"), "scale must be one of"),
+    (("8", "quick"), "chapter 8 is not reproduced by 'sparselt reproduce' yet"),
+], ids=["unknown-chapter", "unknown-scale", "chapter-not-yet"])
+def test_bad_reproduce_input_is_refused_before_running(tmp_path, arguments, message):
+    with pytest.raises(ValueError, match=message):
+        reproduce(*arguments, tmp_path / "never", progress=False)
+    assert not (tmp_path / "never").exists()
+
+
+def test_the_page_refuses_links_to_missing_files(tmp_path):
+    with pytest.raises(ValueError, match="does not exist"):
+        write_page(str(tmp_path / "index.html"), "t", [Section(title="s", links=[("x", "missing.csv")])], {})
+
+
+def test_every_comparison_writes_a_page_a_browser_renders(tmp_path, chromium):
+    from sparselt.experiments.compare import ComparisonConfig, compare
+
+    config = ComparisonConfig(scene="cornell-box", kind="dof", shape=(16, 16, 4, 4), methods=("pt", "samples-mean"),
+                              spps=(2, 8), reference_spp=64, aperture=0.1)
+    compare(config, tmp_path / "c", progress=False)
+    dom = rendered_dom(chromium, tmp_path / "c" / "index.html")
+    assert 'data-broken-images=""' in dom and int(re.search(r'data-images="(\d+)"', dom).group(1)) >= 2
+    assert re.search(r"samples-mean (beats|loses to) PT at equal time", dom)
+    parsed = _Collector()
+    parsed.feed(dom)
+    assert all((tmp_path / "c" / target).exists() for target in parsed.links + parsed.images)
