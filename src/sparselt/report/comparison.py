@@ -34,8 +34,9 @@ def equal_time_verdicts(rows):
     return verdicts
 
 
-def write_comparison_page(out, rows, config, scene, thesis_tables, provenance):
-    """``out/index.html`` for a comparison folder; returns its path."""
+def comparison_section(folder, prefix, rows, config, scene, thesis_tables, *, title=None):
+    """The report section of the comparison in ``folder``; file paths start with ``prefix`` (the folder
+    relative to the page)."""
     thesis = thesis_tables.get(scene) if config.kind == "dof" else None
     tables = []
     for method in dict.fromkeys(row["method"] for row in rows):
@@ -57,18 +58,25 @@ def write_comparison_page(out, rows, config, scene, thesis_tables, provenance):
         caption = (f"Table {thesis[0]} layout: execution times, {scene}" if thesis
                    else f"Execution times and quality, {scene}") + f" ({method})"
         tables.append(Table(caption=caption, columns=columns, kinds=kinds, rows=table_rows))
-    figures = [Figure(name, caption) for name, caption in (
+    join = (lambda name: f"{prefix}/{name}") if prefix else (lambda name: name)
+    figures = [Figure(join(name), caption) for name, caption in (
         ("quality_vs_time.png", "Figures 8.1/8.3 layout: relMSE and SSIM against time"),
         ("image_grid.png", "Figures 8.2/8.4 layout: the methods at matched time beside the reference"),
         ("crop_grid.png", "Details where the methods disagree most"))
-        if os.path.exists(os.path.join(out, name))]
-    links = [(name, name) for name in ("results.csv", "equal_time.md", "table_8.md", "table_6.md", "compare.json")
-             if os.path.exists(os.path.join(out, name))]
-    section = Section(
-        title=f"{scene}, kind {config.kind}, grid {'x'.join(map(str, config.shape))}, "
-              f"image {'x'.join(map(str, config.output_resolution))}",
-        introduction="Every method at every budget against a cached Mitsuba reference; relMSE epsilon 0.01; "
-                     "equal time means every second counted (pilot samples, reconstruction, filtering), "
-                     "kernels warmed first.",
+        if os.path.exists(os.path.join(folder, name))]
+    links = [(name, join(name)) for name in ("results.csv", "equal_time.md", "table_8.md", "table_6.md", "compare.json")
+             if os.path.exists(os.path.join(folder, name))]
+    return Section(
+        title=title or (f"{scene}, kind {config.kind}, grid {'x'.join(map(str, config.shape))}, "
+                        f"image {'x'.join(map(str, config.output_resolution))}"),
+        introduction=f"{scene}, kind {config.kind}, grid {'x'.join(map(str, config.shape))}, image "
+                     f"{'x'.join(map(str, config.output_resolution))}: every method at every budget against a cached "
+                     "Mitsuba reference; relMSE epsilon 0.01; equal time means every second counted (pilot samples, "
+                     "reconstruction, filtering), kernels warmed first.",
         tables=tables, figures=figures, verdicts=equal_time_verdicts(rows), links=links)
+
+
+def write_comparison_page(out, rows, config, scene, thesis_tables, provenance):
+    """``out/index.html`` for a comparison folder; returns its path."""
+    section = comparison_section(out, "", rows, config, scene, thesis_tables)
     return write_page(os.path.join(out, "index.html"), f"sparselt compare: {scene}", [section], provenance)
