@@ -31,6 +31,12 @@ _METHOD_ROWS = (("Sum Integration", "sum"), ("Fourier Time Integration (no FFT)"
                 ("Fourier Time Integration (with FFT)", "time-fft"), ("Convolution Integration", "convolution"))
 
 
+#: Expected hours per chapter at the thesis scale on 2 cores, from this machine's measured rates: the 10-D
+#: signals (4.2e10 samples at ~2.5 M/s, 4.8 h each), the SFT at 6.55e8 cells (extrapolated from 6.7e7: ~1 h
+#: without the dense alpha 32, which needs more than 24 GB), CoSaMP at 250x250x16x16 (minutes per budget).
+THESIS_HOURS = {"4": 0.1, "5": 20.0, "6": 3.0, "7": 1.0, "8": 2.0}
+
+
 def _check(chapter, scale):
     if str(chapter) not in CHAPTERS:
         raise ValueError(f"chapter must be one of {', '.join(CHAPTERS)}, got {chapter!r}")
@@ -229,11 +235,46 @@ def chapter_6(scale, folder, progress):
     verdict = (f"The SFT reads {min(r['total_samples'] / size for r in rows):.2f}-"
                f"{max(r['total_samples'] / size for r in rows):.2f} N samples (the thesis: 1.09-6.6 N) but its image "
                f"has at least {worst:.0f}x path tracing's relMSE at the same samples: the thesis's negative result holds.")
-    return Section(title="Chapter 6: the Sparse Fourier Transform on path space", tables=[table], verdicts=[verdict],
+    maps = _sft_maps(scale, folder, progress)
+    return Section(title="Chapter 6: the Sparse Fourier Transform on path space", tables=[table] + maps.tables,
+                   verdicts=[verdict] + maps.verdicts,
                    figures=[Figure("chapter6/table61/figure_6_1.png", "Figure 6.1: SFT image comparison for the "
-                                   "Cornell Box scene (reference, SFT at the lowest alpha, PT at the same samples)")],
+                                   "Cornell Box scene (reference, SFT at the lowest alpha, PT at the same samples)")]
+                   + maps.figures,
                    links=[("table_6_1.md", "chapter6/table61/table_6_1.md"),
-                          ("compressibility.md", "chapter6/table61/compressibility.md")])
+                          ("compressibility.md", "chapter6/table61/compressibility.md")] + maps.links)
+
+
+def _sft_maps(scale, folder, progress):
+    """Tables 6.2/6.3 layout: SFT importance maps guiding a render at a higher resolution (thesis 6.2)."""
+    from ..report.comparison import comparison_section
+    from .compare import ComparisonConfig, compare
+    from .compare_report import THESIS_GUIDING_TABLES
+
+    quick = scale == "quick"
+    config = ComparisonConfig(
+        scene="cornell-caustics", kind="path", shape=(16, 16) + (4,) * 8 if quick else (100, 100) + (4,) * 8,
+        resolution=(64, 64) if quick else (1000, 1000), methods=("pt", "guided-sft"),
+        spps=(16, 64) if quick else (489,), reference_spp=1024 if quick else 16384, map_spp=1,
+        guiding_mode="global")
+    out = os.path.join(folder, "maps")
+    result = compare(config, out, progress=progress, overwrite=True)
+    section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics", {})
+    thesis = THESIS_GUIDING_TABLES["cornell-caustics"]
+    rows = [(f"{size}x{size}", [f"{values[0]}", "-", f"{values[1]}", "-", f"{values[2]}", "-"])
+            for size, values in thesis[2].items()]
+    width = config.output_resolution[0]
+    for spp in config.spps:
+        guided = [row for row in result.rows if row["method"] == "guided-sft" and row["spp"] == spp]
+        plain = [row for row in result.rows if row["method"] == "pt" and row["spp"] == spp]
+        rows.append((f"{width}x{width} (ours)", ["-", f"{spp}", "-", f"{guided[0]['seconds_total']:.2f}", "-",
+                                                f"{plain[0]['seconds_total']:.2f}"]))
+    section.tables = [Table(caption=f"Table {thesis[0]}: Execution times for the Cornell Box scene (ours: "
+                                    f"cornell-caustics, map {'x'.join(map(str, config.shape))}, seconds)",
+                            columns=["thesis spp", "ours", "thesis SFT importance sampling s", "ours",
+                                     "thesis PT s", "ours"],
+                            kinds=["thesis", "ours"] * 3, rows=rows)] + section.tables[1:]
+    return section
 
 
 def chapter_8(scale, folder, progress):
@@ -245,7 +286,8 @@ def chapter_8(scale, folder, progress):
     quick = scale == "quick"
     config = ComparisonConfig(
         scene="dof-sculptures", kind="dof", shape=(64, 64, 8, 8) if quick else (250, 250, 16, 16),
-        methods=("pt", "samples-mean", "cosamp", "cosamp-thesis", "bilateral", "cosamp-bilateral", "oidn"),
+        methods=("pt", "samples-mean", "cosamp", "cosamp-thesis", "bilateral", "cosamp-bilateral", "oidn",
+                 "guided-cosamp", "guided-bilateral"),
         spps=(16, 40) if quick else (40, 81, 163, 327), reference_spp=256 if quick else 4096, gamma=0.25)
     out = os.path.join(folder, "compare")
     result = compare(config, out, progress=progress, overwrite=True)
@@ -265,6 +307,11 @@ def reproduce(chapter, scale, out, *, progress=True):
         Unknown chapter or scale, before anything runs.
     """
     chapters = _check(chapter, scale)
+    if scale == "thesis":
+        hours = sum(THESIS_HOURS[number] for number in chapters)
+        print(f"reproduce: the thesis scale takes about {hours:.0f} hours on 2 cores (chapters "
+              + ", ".join(f"{number}: {THESIS_HOURS[number]:g} h" for number in chapters)
+              + "); rerun the same command to resume after an interruption", flush=True)
     out = os.fspath(out)
     os.makedirs(out, exist_ok=True)
     say = print if progress else (lambda *arguments, **options: None)
