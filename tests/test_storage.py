@@ -325,3 +325,9 @@ def test_show_on_a_dask_cluster_writes_the_same_image(tmp_path):
     from matplotlib import image
 
     assert np.array_equal(image.imread(tmp_path / "a" / "image.png"), image.imread(tmp_path / "b" / "image.png"))
+
+
+def test_an_fsspec_url_is_refused_with_a_message(cornell):
+    config = AcquisitionConfig(scene="cornell-box", kind="dof", shape=(8, 8, 2, 2), spp=1, aperture=0.1)
+    with pytest.raises(ValueError, match="only file-system paths are supported"):
+        acquire_signal(config, "s3://bucket/signal", progress=False, scene_spec=cornell)

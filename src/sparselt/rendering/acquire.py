@@ -339,9 +339,10 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
             )
         identity = None
     else:
+        if "://" in os.fspath(path):
+            raise ValueError(f"output {os.fspath(path)!r}: only file-system paths are supported (a shared one for a "
+                             "cluster); fsspec URLs are not, because the store's lock and journal need a file system")
         path = os.path.abspath(os.fspath(path))
-        if "://" in path:
-            raise ValueError(f"output {path!r}: only file-system paths are supported (a shared one for a cluster)")
         identity = scene_identity(spec)
         check_unlocked(path)
         plan = _inspect_store(path, config, identity, overwrite=overwrite)
