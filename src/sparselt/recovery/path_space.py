@@ -77,7 +77,7 @@ class CellOracle:
         self.size = math.prod(self.shape)
         self.spp = check_integer("samples per lattice point", spp, 1)
         self.batch_cells = batch_cells or max(1, DEFAULT_BATCH_SAMPLES // self.spp)
-        self.store = IndexedValues(self.size, (3,), np.float64)
+        self.store = IndexedValues(self.size, (3,), np.float32)  # the renderer's precision; half the copies of float64
         self.sft_phase = "support"
         self.cells_by_phase = dict.fromkeys(PHASES, 0)
         self.nonfinite = 0
@@ -105,11 +105,11 @@ class CellOracle:
         missing = self.store.missing(indices)
         if missing.size:
             start = time.perf_counter()
-            rendered = np.empty((missing.size, 3), dtype=np.float64)
+            rendered = np.empty((missing.size, 3), dtype=np.float32)
             for first in range(0, missing.size, self.batch_cells):
                 batch = missing[first:first + self.batch_cells]
                 means, nonfinite = self.evaluate(batch)
-                means = np.asarray(means, dtype=np.float64)
+                means = np.asarray(means, dtype=np.float32)
                 if means.shape != (batch.size, 3):
                     raise ValueError(f"evaluate returned means of shape {means.shape} for {batch.size} cells; "
                                      f"expected ({batch.size}, 3)")
