@@ -408,7 +408,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
                                                    progress=progress, cache_directory=cache_directory)
     reference_seconds = time.perf_counter() - reference_start
     exposure = reference_exposure(reference)
-    _write_image(out, "reference", reference, exposure)
+    write_images(out, "reference", reference, exposure)
     mask = None
     if config.caustic_mask:
         mask = caustic_mask(loaded, reference, spp=min(config.reference_spp, 1024), max_depth=config.max_depth,
@@ -432,7 +432,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
             result = method.run(context, Budget(spp=spp, seed=seed))
             method_seconds += time.perf_counter() - run_start
             row = _row(method.name, spp, seed, result, reference, mask)
-            _write_image(out, cell_name(method.name, spp, seed), result.image, exposure)
+            write_images(out, cell_name(method.name, spp, seed), result.image, exposure)
             write_json(_record_path(out, method.name, spp, seed),
                        {"row": row, "details": result.details, "seconds": result.seconds})
             if progress:
@@ -453,7 +453,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     compare_report.write_table_8(os.path.join(out, "table_8.md"), rows, spec.name, config)
     compare_report.write_equal_time_table(os.path.join(out, "equal_time.md"), rows, RELMSE_EPSILON)
     compare_report.write_table_6(os.path.join(out, "table_6.md"), rows, spec.name, config)
-    write_comparison_page(out, rows, config, spec.name, compare_report.THESIS_TABLES, environment_record())
+    write_comparison_page(out, rows, config, spec.name, environment_record())
     report_seconds = time.perf_counter() - report_start
     total = time.perf_counter() - started
     harness = max(0.0, total - method_seconds - reference_seconds)
@@ -477,7 +477,8 @@ def _row(name, spp, seed, result, reference, mask=None):
     return row
 
 
-def _write_image(out, name, image, exposure):
+def write_images(out, name, image, exposure):
+    """``out/images/name`` as .npy (float32), .exr and tone-mapped .png, each written atomically."""
     folder = os.path.join(out, IMAGES)
     atomic_save_npy(os.path.join(folder, name + ".npy"), np.asarray(image, dtype=np.float32))
     temporary = os.path.join(folder, ".tmp-" + name + ".exr")

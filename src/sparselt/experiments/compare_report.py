@@ -39,6 +39,42 @@ def _format(value):
     return str(value)
 
 
+def method_spp_groups(rows):
+    """``(method, spp, rows)`` per comparison cell (its rows over seeds): methods as first seen, spp ascending."""
+    for method in dict.fromkeys(row["method"] for row in rows):
+        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
+            yield method, spp, [row for row in rows if row["method"] == method and row["spp"] == spp]
+
+
+def group_mean(group, key):
+    """Mean of ``key`` over a cell's rows (its seeds)."""
+    return float(np.mean([row[key] for row in group]))
+
+
+TABLE_8_COLUMNS = ("Total", "Sampling", "CoSaMP", "Integration", "Other", "SSIM", "relMSE", "luminance ratio")
+
+
+def table_8_rows(rows, scene, config):
+    """Tables 8.1/8.2 (mean over seeds): ``(thesis, {method: [(spp, cells, thesis values or None)]})``.
+
+    ``cells`` are the formatted :data:`TABLE_8_COLUMNS`; ``thesis`` is the
+    :data:`THESIS_TABLES` entry of the scene (depth of field only) or ``None``,
+    and its values stand beside the CoSaMP methods only. ``table_8.md`` and
+    the comparison's report page are both made from this.
+    """
+    thesis = THESIS_TABLES.get(scene) if config.kind == "dof" else None  # Tables 8.1/8.2 are depth of field
+    methods = {}
+    for method, spp, group in method_spp_groups(rows):
+        cells = [f"{group_mean(group, key):.3f}" for key in ("seconds_total", "seconds_sampling",
+                                                             "seconds_reconstruction", "seconds_integration",
+                                                             "seconds_other")]
+        cells += [f"{group_mean(group, 'ssim'):.3f}", f"{group_mean(group, 'relmse'):.4g}",
+                  f"{group_mean(group, 'luminance_ratio'):.3f}"]
+        values = thesis[2].get(spp) if thesis and method.startswith("cosamp") else None
+        methods.setdefault(method, []).append((spp, cells, values))
+    return thesis, methods
+
+
 def write_results_csv(path, rows, columns):
     """``results.csv``: ``columns`` first (in that order), then any other keys, sorted."""
     extra = sorted({key for row in rows for key in row} - set(columns))
@@ -86,23 +122,20 @@ def write_equal_time_table(path, rows, epsilon):
              f"{epsilon}). relMSE ratio < 1 and SSIM ratio > 1: better than PT at equal time.", "",
              "| method | spp | seconds | relMSE | PT relMSE same time | relMSE ratio | SSIM | PT SSIM same time | "
              "SSIM ratio | luminance ratio |", "|---|---|---|---|---|---|---|---|---|---|"]
-    for method in dict.fromkeys(row["method"] for row in rows):
+    for method, spp, group in method_spp_groups(rows):
         if method == "pt":
             continue
-        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
-            group = [row for row in rows if row["method"] == method and row["spp"] == spp]
-            mean = {key: float(np.mean([row[key] for row in group]))
-                    for key in ("seconds_total", "relmse", "ssim", "luminance_ratio")}
-            pt_relmse = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") != ""]
-            pt_ssim = [row["ssim_pt_equal_time"] for row in group if row.get("ssim_pt_equal_time") != ""]
-            if len(pt_relmse) == len(group):
-                reference_relmse, reference_ssim = float(np.mean(pt_relmse)), float(np.mean(pt_ssim))
-                cells = (f"{reference_relmse:.4g} | {mean['relmse'] / reference_relmse:.2f} | {mean['ssim']:.3f} | "
-                         f"{reference_ssim:.3f} | {mean['ssim'] / reference_ssim:.2f}")
-            else:
-                cells = f"- | - | {mean['ssim']:.3f} | - | -"
-            lines.append(f"| {method} | {spp} | {mean['seconds_total']:.3f} | {mean['relmse']:.4g} | {cells} | "
-                         f"{mean['luminance_ratio']:.3f} |")
+        mean = {key: group_mean(group, key) for key in ("seconds_total", "relmse", "ssim", "luminance_ratio")}
+        pt_relmse = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") != ""]
+        pt_ssim = [row["ssim_pt_equal_time"] for row in group if row.get("ssim_pt_equal_time") != ""]
+        if len(pt_relmse) == len(group):
+            reference_relmse, reference_ssim = float(np.mean(pt_relmse)), float(np.mean(pt_ssim))
+            cells = (f"{reference_relmse:.4g} | {mean['relmse'] / reference_relmse:.2f} | {mean['ssim']:.3f} | "
+                     f"{reference_ssim:.3f} | {mean['ssim'] / reference_ssim:.2f}")
+        else:
+            cells = f"- | - | {mean['ssim']:.3f} | - | -"
+        lines.append(f"| {method} | {spp} | {mean['seconds_total']:.3f} | {mean['relmse']:.4g} | {cells} | "
+                     f"{mean['luminance_ratio']:.3f} |")
     atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
 
 
@@ -219,26 +252,17 @@ def write_table_8(path, rows, scene, config):
              f"image {'x'.join(map(str, config.output_resolution))}", "",
              "Mean over seeds; kernels warmed first; CoSaMP = the reconstruction phase; "
              f"relMSE epsilon = {compare.RELMSE_EPSILON}.", ""]
-    thesis = THESIS_TABLES.get(scene) if config.kind == "dof" else None  # Tables 8.1/8.2 are depth of field
-    for method in dict.fromkeys(row["method"] for row in rows):
+    thesis, methods = table_8_rows(rows, scene, config)
+    for method, cells in methods.items():
         lines += [f"## {method}", ""]
-        header = "| SPP | Total | Sampling | CoSaMP | Integration | Other | SSIM | relMSE | luminance ratio |"
+        header = "| SPP | " + " | ".join(TABLE_8_COLUMNS) + " |"
         if thesis and method.startswith("cosamp"):
             header += f" thesis Table {thesis[0]} ({thesis[1]}): Total / Sampling / CoSaMP / Integration |"
         lines += [header, "|" + "---|" * (header.count("|") - 1)]
-        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
-            group = [row for row in rows if row["method"] == method and row["spp"] == spp]
-
-            def mean(key, group=group):
-                return float(np.mean([row[key] for row in group]))
-
-            line = (f"| {spp} | {mean('seconds_total'):.3f} | {mean('seconds_sampling'):.3f} | "
-                    f"{mean('seconds_reconstruction'):.3f} | {mean('seconds_integration'):.3f} | "
-                    f"{mean('seconds_other'):.3f} | {mean('ssim'):.3f} | {mean('relmse'):.4g} | "
-                    f"{mean('luminance_ratio'):.3f} |")
+        for spp, values, thesis_values in cells:
+            line = f"| {spp} | " + " | ".join(values) + " |"
             if thesis and method.startswith("cosamp"):
-                values = thesis[2].get(spp)
-                line += (" " + " / ".join(f"{v:g}" for v in values) + " |") if values else " - |"
+                line += (" " + " / ".join(f"{v:g}" for v in thesis_values) + " |") if thesis_values else " - |"
             lines.append(line)
         lines.append("")
     atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
@@ -319,18 +343,15 @@ def write_table_6(path, rows, scene, config):
              "", "Guided time includes the pilot pass, the map's reconstruction and the CDFs; mean over seeds.", "",
              "| method | image size | spp | map spp | guided time | PT time (same spp) | guided relMSE | PT relMSE | "
              "relMSE / PT at equal time |", "|---|---|---|---|---|---|---|---|---|"]
-    for method in dict.fromkeys(row["method"] for row in guided):
-        for spp in sorted({row["spp"] for row in guided if row["method"] == method}):
-            group = [row for row in guided if row["method"] == method and row["spp"] == spp]
-            seconds = float(np.mean([row["seconds_total"] for row in group]))
-            relmse = float(np.mean([row["relmse"] for row in group]))
-            pt_rows = [row for row in rows if row["method"] == "pt" and row["spp"] == spp]
-            pt_seconds = f"{np.mean([r['seconds_total'] for r in pt_rows]):.3f}" if pt_rows else "-"
-            pt_relmse = f"{np.mean([r['relmse'] for r in pt_rows]):.4g}" if pt_rows else "-"
-            equal = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
-            ratio = f"{relmse / float(np.mean(equal)):.2f}" if len(equal) == len(group) else "-"
-            lines.append(f"| {method} | {width}x{height} | {spp} | {config.map_spp or 16} | {seconds:.3f} | {pt_seconds} | "
-                         f"{relmse:.4g} | {pt_relmse} | {ratio} |")
+    for method, spp, group in method_spp_groups(guided):
+        seconds, relmse = group_mean(group, "seconds_total"), group_mean(group, "relmse")
+        pt_rows = [row for row in rows if row["method"] == "pt" and row["spp"] == spp]
+        pt_seconds = f"{np.mean([r['seconds_total'] for r in pt_rows]):.3f}" if pt_rows else "-"
+        pt_relmse = f"{np.mean([r['relmse'] for r in pt_rows]):.4g}" if pt_rows else "-"
+        equal = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
+        ratio = f"{relmse / float(np.mean(equal)):.2f}" if len(equal) == len(group) else "-"
+        lines.append(f"| {method} | {width}x{height} | {spp} | {config.map_spp or 16} | {seconds:.3f} | {pt_seconds} | "
+                     f"{relmse:.4g} | {pt_relmse} | {ratio} |")
     thesis = THESIS_GUIDING_TABLES.get(scene)
     if thesis:
         lines += ["", f"Thesis Table {thesis[0]} ({thesis[1]}, SFT importance sampling, 100x100x4^8 map):", "",

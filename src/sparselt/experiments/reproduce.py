@@ -216,7 +216,7 @@ def chapter_6(scale, folder, progress):
     config = Table61Config(scene="cornell-box", shape=shape, alphas=(4.0, 16.0) if scale == "quick" else (4.0, 16.0, 32.0),
                            noise_spps=(), reference_spp=256 if scale == "quick" else 4096)
     rows = run_table61(config, out, progress=progress)
-    from .sft_path_space import thesis_table_6_1
+    from .sft_path_space import THESIS_SHAPE, thesis_table_6_1
 
     thesis = thesis_table_6_1()
     table_rows = []
@@ -225,7 +225,7 @@ def chapter_6(scale, folder, progress):
         reference = thesis.get(int(row["alpha"]), {})
         table_rows.append((f"alpha {row['alpha']:g}", [
             f"{reference.get('total', 0):,}" if reference else "-", f"{row['total_samples']:,}",
-            f"{reference['total'] / 655360000:.2f}" if reference else "-", f"{row['total_samples'] / size:.2f}",
+            f"{reference['total'] / math.prod(THESIS_SHAPE):.2f}" if reference else "-", f"{row['total_samples'] / size:.2f}",
             f"{row['sft']['relmse']:.3g}", f"{row['pt_equal_samples']['relmse']:.3g}"]))
     table = Table(caption=f"Table 6.1: Sparse Fourier Transform Sampling Requirements (ours: cornell-box, grid "
                           f"{'x'.join(map(str, shape))}, K = N/10^4, 1 path sample per lattice point)",
@@ -260,7 +260,7 @@ def _sft_maps(scale, folder, progress):
         guiding_mode="global")
     out = os.path.join(folder, "maps")
     result = compare(config, out, progress=progress, overwrite=True)
-    section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics", {})
+    section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics")
     thesis = THESIS_GUIDING_TABLES["cornell-caustics"]
     rows = [(f"{size}x{size}", [f"{values[0]}", "-", f"{values[1]}", "-", f"{values[2]}", "-"])
             for size, values in thesis[2].items()]
@@ -282,7 +282,6 @@ def chapter_8(scale, folder, progress):
     """Tables 8.1/8.2 and Figures 8.1-8.4: the CoSaMP pipeline against PT at equal time (`sparselt compare`)."""
     from ..report.comparison import comparison_section
     from .compare import ComparisonConfig, compare
-    from .compare_report import THESIS_TABLES
 
     quick = scale == "quick"
     config = ComparisonConfig(
@@ -292,7 +291,7 @@ def chapter_8(scale, folder, progress):
         spps=(16, 40) if quick else (40, 81, 163, 327), reference_spp=256 if quick else 4096, gamma=0.25)
     out = os.path.join(folder, "compare")
     result = compare(config, out, progress=progress, overwrite=True)
-    return comparison_section(out, "chapter8/compare", result.rows, config, "dof-sculptures", THESIS_TABLES,
+    return comparison_section(out, "chapter8/compare", result.rows, config, "dof-sculptures",
                               title="Chapter 8: CoSaMP reconstruction, filtering and the equal-time comparison")
 
 

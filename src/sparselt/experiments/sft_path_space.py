@@ -31,16 +31,16 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..checks import check_integer, check_positive_finite
-from ..images import reference_exposure, write_png
+from ..images import reference_exposure
 from ..methods.base import Budget, ComparisonContext
 from ..methods.registry import get_method
 from ..methods.sft_reconstruction import reconstruct
-from ..provenance import atomic_save_npy, environment_record, read_json, write_json
+from ..provenance import environment_record, read_json, write_json
 from ..recovery.path_space import largest_energy_fraction
 from ..rendering import mitsuba_backend
 from ..rendering.layout import path_layout
 from ..rendering.scenes import get_scene
-from .compare import RELMSE_EPSILON, quality
+from .compare import IMAGES, RELMSE_EPSILON, quality, write_images
 
 def thesis_table_6_1():
     """Thesis Table 6.1 (K = 65,536 of N = 6.5536e8, 100x100x4^8 path space): alpha -> sample counts."""
@@ -54,7 +54,6 @@ def thesis_table_6_1():
 
 THESIS_SHAPE = (100, 100) + (4,) * 8
 RECORDS = "records"
-IMAGES = "images"
 
 
 @dataclass(frozen=True)
@@ -147,7 +146,7 @@ def run_table61(config, out, *, progress=True):
     reference, reference_record = cached_reference(scene, config.kind, spp=config.reference_spp,
                                                    max_depth=config.max_depth, seed=0, progress=progress)
     exposure = reference_exposure(reference)
-    _save(out, "reference", reference, exposure)
+    write_images(out, "reference", reference, exposure)
     pt = get_method("pt")
     base = ComparisonContext(scene=scene, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
                              resolution=resolution, max_depth=config.max_depth, options=options)
@@ -192,8 +191,8 @@ def run_table61(config, out, *, progress=True):
             "pt_equal_samples": quality(pt_samples, reference), "pt_equal_time_spp": equal_time_spp,
             "pt_equal_time": quality(pt_time, reference),
         }
-        _save(out, f"sft_{name}", image, exposure)
-        _save(out, f"pt_equal_samples_{name}", pt_samples, exposure)
+        write_images(out, f"sft_{name}", image, exposure)
+        write_images(out, f"pt_equal_samples_{name}", pt_samples, exposure)
         write_json(path, row)
         rows.append(row)
         say(f"table61: {name}: {result.path_samples} path samples ({row['samples_per_pixel']:.1f} per pixel), "
@@ -284,12 +283,6 @@ def _write_compressibility(out, config, record, sparsity):
         lines.append(f"| {row['spp']} | " + " | ".join(
             f"{row[label]['energy']:.1%} ({row[label]['coefficients']})" for label in labels) + " |")
     atomic_write_bytes(os.path.join(out, "compressibility.md"), ("\n".join(lines) + "\n").encode())
-
-
-def _save(out, name, image, exposure):
-    atomic_save_npy(os.path.join(out, IMAGES, name + ".npy"), image.astype(np.float32))
-    write_png(os.path.join(out, IMAGES, name + ".png"), image, exposure=exposure)
-    mitsuba_backend.write_exr(os.path.join(out, IMAGES, name + ".exr"), image)
 
 
 def _figure(out, rows, exposure):

@@ -36,6 +36,7 @@ draws cells over the image plane too, with the fixed ``defensive`` weight.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -256,7 +257,7 @@ class GuidedSft(_GuidedMethod):
         from .sft_reconstruction import reconstruct
 
         small = dict(context.options, sparsity=1)
-        reconstruct(_replace_options(context, small), 1, WARM_UP_SEED)
+        reconstruct(dataclasses.replace(context, options=small), 1, WARM_UP_SEED)
 
     def run(self, context, budget):
         from .sft_reconstruction import reconstruct, sft_options
@@ -280,9 +281,3 @@ class GuidedSft(_GuidedMethod):
                    "nonfinite_samples": nonfinite + result.nonfinite}
         return MethodResult(image=image, seconds=timer.seconds,
                             path_samples=result.path_samples + width * height * budget.spp, details=details)
-
-
-def _replace_options(context, options):
-    from dataclasses import replace
-
-    return replace(context, options=options)

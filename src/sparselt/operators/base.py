@@ -55,19 +55,20 @@ class LinearOperator:
 
     def matvec(self, vector):
         """``A x`` for a model vector of ``shape[1]`` values (any shape with that many)."""
-        vector = np.asarray(vector).reshape(-1)
-        if vector.size != self.shape[1]:
-            raise ValueError(f"{type(self).__name__}.matvec takes {self.shape[1]} values (dims {tuple(self.dims)}), "
-                             f"got {vector.size}")
-        return self._matvec(vector)
+        return self._matvec(self._flat(vector, "matvec", "dims", self.dims))
 
     def rmatvec(self, vector):
         """``A^* y`` for a data vector of ``shape[0]`` values."""
+        return self._rmatvec(self._flat(vector, "rmatvec", "dimsd", self.dimsd))
+
+    def _flat(self, vector, method, name, dims):
+        """``vector`` flattened, refused unless it has ``prod(dims)`` values."""
         vector = np.asarray(vector).reshape(-1)
-        if vector.size != self.shape[0]:
-            raise ValueError(f"{type(self).__name__}.rmatvec takes {self.shape[0]} values (dimsd "
-                             f"{tuple(self.dimsd)}), got {vector.size}")
-        return self._rmatvec(vector)
+        size = math.prod(dims)
+        if vector.size != size:
+            raise ValueError(f"{type(self).__name__}.{method} takes {size} values ({name} {tuple(dims)}), "
+                             f"got {vector.size}")
+        return vector
 
     @property
     def H(self):  # noqa: N802  (PyLops' name)

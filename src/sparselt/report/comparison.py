@@ -9,10 +9,6 @@ import numpy as np
 from .page import Figure, Section, Table, write_page
 
 
-def _mean(group, key):
-    return float(np.mean([row[key] for row in group]))
-
-
 def equal_time_verdicts(rows):
     """One sentence per method from its relMSE against PT's at the same time (mean of the ratios over spp)."""
     verdicts = []
@@ -34,29 +30,23 @@ def equal_time_verdicts(rows):
     return verdicts
 
 
-def comparison_section(folder, prefix, rows, config, scene, thesis_tables, *, title=None):
+def comparison_section(folder, prefix, rows, config, scene, *, title=None):
     """The report section of the comparison in ``folder``; file paths start with ``prefix`` (the folder
-    relative to the page)."""
-    thesis = thesis_tables.get(scene) if config.kind == "dof" else None
+    relative to the page). Its tables are ``table_8.md``'s (:func:`~sparselt.experiments.compare_report.table_8_rows`)."""
+    from ..experiments.compare_report import TABLE_8_COLUMNS, table_8_rows  # not at the top: compare imports this module
+
+    thesis, methods = table_8_rows(rows, scene, config)
     tables = []
-    for method in dict.fromkeys(row["method"] for row in rows):
-        table_rows = []
-        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
-            group = [row for row in rows if row["method"] == method and row["spp"] == spp]
-            cells = [f"{_mean(group, 'seconds_total'):.3f}", f"{_mean(group, 'seconds_sampling'):.3f}",
-                     f"{_mean(group, 'seconds_reconstruction'):.3f}", f"{_mean(group, 'seconds_integration'):.3f}",
-                     f"{_mean(group, 'ssim'):.3f}", f"{_mean(group, 'relmse'):.4g}"]
-            if thesis:
-                values = thesis[2].get(spp) if method.startswith("cosamp") else None
-                cells.append(" / ".join(f"{value:g}" for value in values) if values else "-")
-            table_rows.append((f"{method}, {spp} spp", cells))
-        columns = ["total s", "sampling s", "reconstruction s", "integration s", "SSIM", "relMSE"]
-        kinds = ["ours"] * 6
+    for method, cells in methods.items():
+        columns, kinds = list(TABLE_8_COLUMNS), ["ours"] * len(TABLE_8_COLUMNS)
         if thesis:
             columns.append(f"thesis Table {thesis[0]} ({thesis[1]}): total / sampling / CoSaMP / integration s")
             kinds.append("thesis")
-        caption = (f"Table {thesis[0]} layout: execution times, {scene}" if thesis
-                   else f"Execution times and quality, {scene}") + f" ({method})"
+        table_rows = [(f"{method}, {spp} spp", values + ([" / ".join(f"{v:g}" for v in thesis_values)
+                                                          if thesis_values else "-"] if thesis else []))
+                      for spp, values, thesis_values in cells]
+        caption = (f"Table {thesis[0]} layout: execution times (s), {scene}" if thesis
+                   else f"Execution times (s) and quality, {scene}") + f" ({method})"
         tables.append(Table(caption=caption, columns=columns, kinds=kinds, rows=table_rows))
     join = (lambda name: f"{prefix}/{name}") if prefix else (lambda name: name)
     figures = [Figure(join(name), caption) for name, caption in (
@@ -76,7 +66,7 @@ def comparison_section(folder, prefix, rows, config, scene, thesis_tables, *, ti
         tables=tables, figures=figures, verdicts=equal_time_verdicts(rows), links=links)
 
 
-def write_comparison_page(out, rows, config, scene, thesis_tables, provenance):
+def write_comparison_page(out, rows, config, scene, provenance):
     """``out/index.html`` for a comparison folder; returns its path."""
-    section = comparison_section(out, "", rows, config, scene, thesis_tables)
+    section = comparison_section(out, "", rows, config, scene)
     return write_page(os.path.join(out, "index.html"), f"sparselt compare: {scene}", [section], provenance)
