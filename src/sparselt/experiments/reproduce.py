@@ -24,6 +24,7 @@ from ..measurement import progress_bar
 from ..provenance import environment_record, read_json, write_json
 from ..report import Figure, Section, Table, write_page
 from ..thesis_numbers import thesis_table
+from .sparsity_analysis import gini_table
 
 CHAPTERS = ("4", "5", "6", "7", "8", "all")
 SCALES = ("quick", "thesis")
@@ -105,12 +106,6 @@ def _sampled(scene, kind, shape, spp, folder, name, progress, **lens):
     return acquire_signal(config, path, overwrite=True, progress=progress)
 
 
-def _gini(signal, gammas, progress):
-    from .sparsity_analysis import gini_table
-
-    return gini_table(signal, gammas)
-
-
 def _value(rows, gamma, domain, energy, channel=None):
     values = [row[4] for row in rows if row[0] == gamma and row[1] == domain and row[2] == energy
               and (channel is None or row[3] == channel)]
@@ -132,7 +127,7 @@ def chapter_5(scale, folder, progress):
     gini = {}
     for thesis_scene, (scene, kind) in CHAPTER_5_SIGNALS.items():
         signal = _sampled(scene, kind, shape, spp, folder, f"{scene}-{kind}", progress)
-        gini[thesis_scene] = _gini(signal, (1.0,), progress)
+        gini[thesis_scene] = gini_table(signal, (1.0,))
     for number, domain, basis in (("5.1", "fourier", "Fourier"), ("5.2", "canonical", "primary sample space")):
         rows = []
         for thesis_scene in CHAPTER_5_SIGNALS:
@@ -184,7 +179,7 @@ def chapter_7(scale, folder, progress):
                ("Frequency Energy", "fourier", True))
     for number, (scene, kind, lens) in GAMMA_SIGNALS.items():
         signal = _sampled(scene, kind, shape, spp, folder, f"{scene}-{kind}", progress, **lens)
-        rows = _gini(signal, GAMMAS, progress)
+        rows = gini_table(signal, GAMMAS)
         thesis = {row["label"]: row["cells"] for row in thesis_table(number)["rows"]}
         table_rows = []
         for gamma, label in zip(GAMMAS, thesis):

@@ -35,7 +35,7 @@ from ..images import reference_exposure
 from ..methods.base import Budget, ComparisonContext
 from ..methods.registry import get_method
 from ..methods.sft_reconstruction import reconstruct
-from ..provenance import environment_record, read_json, write_json
+from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
 from ..recovery.path_space import largest_energy_fraction
 from ..rendering import mitsuba_backend
 from ..rendering.layout import path_layout
@@ -264,15 +264,11 @@ def _write_table(out, config, rows, sparsity):
             row["sft"]["relmse"], row["pt_equal_samples"]["ssim"], row["pt_equal_samples"]["relmse"],
             row["pt_equal_time"]["relmse"], row["seconds"], thesis["total"] if thesis else "",
             thesis["spp"] if thesis else "")))
-    from ..provenance import atomic_write_bytes
-
     atomic_write_bytes(os.path.join(out, "table_6_1.md"), ("\n".join(lines) + "\n").encode())
     atomic_write_bytes(os.path.join(out, "table_6_1.csv"), ("\n".join(csv_lines) + "\n").encode())
 
 
 def _write_compressibility(out, config, record, sparsity):
-    from ..provenance import atomic_write_bytes
-
     labels = ("K/N", "10 K/N", "1%", "10%")
     lines = [f"# How compressible the rendered signal is ({config.scene}, {config.kind}, fully sampled at "
              f"{'x'.join(map(str, record['shape']))})", "",

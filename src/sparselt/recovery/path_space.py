@@ -216,7 +216,6 @@ def lattice_image(spectrum, shape):
     whole = np.exp(2j * np.pi * (frequencies % pixels) / pixels)  # = step ** run
     with np.errstate(divide="ignore", invalid="ignore"):
         series = np.where(np.abs(step - 1) > 1e-12, (whole - 1) / (step - 1), run)
-    series = np.where(frequencies % size == 0, run, series)
     series = np.where((frequencies % pixels == 0) & (frequencies != 0), 0, series)
     folded = np.zeros(pixels, dtype=np.complex128)
     np.add.at(folded, frequencies % pixels, values * series)

@@ -229,7 +229,7 @@ def read_chunk(path, grid, index):
     if not os.path.isfile(chunk_file):
         return None
     try:
-        return np.asarray(open_data(path)[region], dtype=np.float32).reshape(count, 3)
+        return np.asarray(_array(path, "r")[region], dtype=np.float32).reshape(count, 3)
     except Exception:  # noqa: BLE001  (any decoding failure means: damaged, sample it again)
         return None
 
