@@ -75,20 +75,30 @@ def reference_exposure(reference):
     return 0.9 / level if level > 0 else 1.0
 
 
-def write_png(path, image, *, exposure=1.0):
-    """Tone-map a linear ``(height, width, 3)`` image and write it as PNG, atomically."""
+def png_bytes(image, *, exposure=1.0):
+    """A linear ``(height, width, 3)`` image, tone-mapped (:func:`srgb_tonemap`), as PNG bytes."""
     from matplotlib import image as matplotlib_image
 
     buffer = io.BytesIO()
     matplotlib_image.imsave(buffer, srgb_tonemap(image, exposure), format="png")
-    atomic_write_bytes(path, buffer.getvalue())
+    return buffer.getvalue()
 
 
-def save_figure(figure, path, **options):
-    """Save a matplotlib figure atomically and close it."""
+def write_png(path, image, *, exposure=1.0):
+    """Tone-map a linear ``(height, width, 3)`` image and write it as PNG, atomically."""
+    atomic_write_bytes(path, png_bytes(image, exposure=exposure))
+
+
+def figure_bytes(figure, **options):
+    """A matplotlib figure as PNG bytes; the figure is closed."""
     import matplotlib.pyplot as pyplot
 
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", **options)
     pyplot.close(figure)
-    atomic_write_bytes(path, buffer.getvalue())
+    return buffer.getvalue()
+
+
+def save_figure(figure, path, **options):
+    """Save a matplotlib figure atomically and close it."""
+    atomic_write_bytes(path, figure_bytes(figure, **options))

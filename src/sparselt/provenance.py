@@ -60,22 +60,45 @@ def environment_record():
     }
 
 
-def atomic_write_bytes(path, data):
-    """Write ``data`` to ``path`` atomically (temporary file, fsync, rename)."""
+def atomic_write(path, write):
+    """The one atomic writer: ``write(temporary_path)`` fills a temporary file beside ``path``, then fsync, rename.
+
+    Every artefact sparselt writes (EXR, PNG, CSV, JSON, npy, HTML, Markdown)
+    goes through here, so an interrupted run never leaves a half-written file
+    under a final name. A full disk is reported as
+    :class:`~sparselt.storage.zarr_store.DiskFullError` naming ``path``.
+    """
+    from .storage.zarr_store import no_space_is_clear
+
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
-    descriptor, temporary = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
-    try:
-        with os.fdopen(descriptor, "wb") as handle:
+    with no_space_is_clear(path, f"writing {os.path.basename(path)!r}",
+                           "finished work is kept: free some space and rerun the same command to resume"):
+        descriptor, temporary = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
+        os.close(descriptor)
+        try:
+            write(temporary)
+            handle = os.open(temporary, os.O_RDONLY)
+            try:
+                os.fsync(handle)
+            finally:
+                os.close(handle)
+            os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
+            os.replace(temporary, path)
+        except BaseException:
+            if os.path.exists(temporary):
+                os.unlink(temporary)
+            raise
+
+
+def atomic_write_bytes(path, data):
+    """Write ``data`` to ``path`` atomically (:func:`atomic_write`)."""
+
+    def write(temporary):
+        with open(temporary, "wb") as handle:
             handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
-        raise
+
+    atomic_write(path, write)
 
 
 def atomic_save_npy(path, array):

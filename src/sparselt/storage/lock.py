@@ -58,8 +58,11 @@ def _process_alive(pid):
     return True
 
 
-def check_unlocked(folder):
-    """Raise :class:`StoreLockedError` if a live process holds ``folder``'s lock (changes nothing)."""
+def check_unlocked(folder, what="signal store"):
+    """Raise :class:`StoreLockedError` if a live process holds ``folder``'s lock (changes nothing).
+
+    ``what`` names the folder in the message ('signal store', 'comparison folder', ...).
+    """
     path = os.path.join(os.fspath(folder), LOCK_FILE)
     try:
         descriptor = os.open(path, os.O_RDONLY)
@@ -69,14 +72,14 @@ def check_unlocked(folder):
         fcntl.flock(descriptor, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except OSError as error:
         if error.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-            raise StoreLockedError(_locked_message(folder, _read_holder(descriptor))) from None
+            raise StoreLockedError(_locked_message(folder, _read_holder(descriptor), what)) from None
         raise
     finally:
         os.close(descriptor)
 
 
-def _locked_message(folder, holder):
-    return (f"signal store {os.fspath(folder)!r} is being written by {_describe(holder)}; "
+def _locked_message(folder, holder, what="signal store"):
+    return (f"{what} {os.fspath(folder)!r} is being written by {_describe(holder)}; "
             "wait for that run to finish or stop it (a killed run's lock is taken over automatically)")
 
 
@@ -87,6 +90,8 @@ class StoreLock:
     ----------
     folder : str
         The store folder; it must exist.
+    what : str, optional
+        What the folder is, for messages (default 'signal store').
 
     Attributes
     ----------
@@ -95,8 +100,9 @@ class StoreLock:
         was killed), else ``None``.
     """
 
-    def __init__(self, folder):
+    def __init__(self, folder, what="signal store"):
         self.folder = os.fspath(folder)
+        self.what = what
         self.path = os.path.join(self.folder, LOCK_FILE)
         self._descriptor = None
         self.previous_holder = None
@@ -111,7 +117,7 @@ class StoreLock:
                 holder = _read_holder(descriptor)
                 os.close(descriptor)
                 if error.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                    raise StoreLockedError(_locked_message(self.folder, holder)) from None
+                    raise StoreLockedError(_locked_message(self.folder, holder, self.what)) from None
                 raise
             try:
                 same_file = os.fstat(descriptor).st_ino == os.stat(self.path).st_ino

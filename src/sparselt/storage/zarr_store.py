@@ -300,8 +300,8 @@ class ChunkJournal:
 class no_space_is_clear:
     """Context manager: a full disk (ENOSPC, EDQUOT, EFBIG) becomes a :class:`DiskFullError` naming the store."""
 
-    def __init__(self, path, action):
-        self.path, self.action = os.fspath(path), action
+    def __init__(self, path, action, remedy="finished chunks are kept: free some space and rerun the same command to resume"):
+        self.path, self.action, self.remedy = os.fspath(path), action, remedy
 
     def __enter__(self):
         return self
@@ -321,7 +321,7 @@ class no_space_is_clear:
             free_text = "free space unknown"
         raise DiskFullError(
             f"no space left on the device holding {self.path!r} while {self.action} ({os.strerror(cause.errno)}, "
-            f"{free_text}); finished chunks are kept: free some space and rerun the same command to resume"
+            f"{free_text}); {self.remedy}"
         ) from None
 
 
