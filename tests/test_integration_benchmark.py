@@ -116,16 +116,81 @@ def test_estimate_is_order_n_for_dense_methods_only():
     ({"seed": -1}, "seed"),
     ({"repeats": 0}, "repeats"),
     ({"density": 0.0}, "density"),
+    ({"sizes": (8.5,)}, "integers"),
+    ({"check_max_size": -1}, "check_max_size"),
 ])
 def test_rejects_bad_arguments(tmp_path, arguments, message):
     with pytest.raises(ValueError, match=message):
         run_integration_benchmark(tmp_path / "out", progress=False, **arguments)
 
 
-def test_refuses_a_non_empty_folder_without_overwrite(tmp_path):
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_refuses_a_folder_with_a_foreign_file_even_with_overwrite(tmp_path, overwrite):
     (tmp_path / "keep.txt").write_text("x")
-    with pytest.raises(ValueError, match="overwrite"):
-        run_integration_benchmark(tmp_path, sizes=(8,), methods=("convolution",), progress=False)
+    with pytest.raises(ValueError, match="did not write.*keep.txt"):
+        run_integration_benchmark(tmp_path, sizes=(8,), methods=("convolution",), overwrite=overwrite, progress=False)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["keep.txt"] and (tmp_path / "keep.txt").read_text() == "x"
+
+
+def test_a_rerun_with_the_same_identity_resumes_and_another_is_refused(tmp_path, monkeypatch):
+    from sparselt.experiments import integration_benchmark
+
+    out = tmp_path / "bench"
+    arguments = dict(sizes=(8,), methods=("convolution", "time"), repeats=1, density=0.01, progress=False)
+    first = run_integration_benchmark(out, **arguments)
+    cells = sorted(path.name for path in (out / "cells").iterdir())
+    assert cells == ["convolution-s8.json", "time-s8.json"]
+    stamps = {name: (out / "cells" / name).stat().st_mtime_ns for name in cells}
+
+    def no_child(*_, **__):
+        raise AssertionError("a finished cell was measured again")
+
+    monkeypatch.setattr(integration_benchmark, "run_child", no_child)
+    again = run_integration_benchmark(out, **arguments)  # same identity: resumes, nothing measured
+    assert again.measurement("time", 8).seconds == first.measurement("time", 8).seconds
+    assert {name: (out / "cells" / name).stat().st_mtime_ns for name in cells} == stamps
+    assert json.loads((out / "sparselt-folder.json").read_text())["status"] == "complete"
+
+    with pytest.raises(ValueError, match="another bench-integrate run.*repeats: 1 recorded, 2 now"):
+        run_integration_benchmark(out, **dict(arguments, repeats=2))
+    assert {name: (out / "cells" / name).stat().st_mtime_ns for name in cells} == stamps
+    monkeypatch.undo()
+    replaced = run_integration_benchmark(out, overwrite=True, **dict(arguments, methods=("convolution",)))
+    assert sorted(path.name for path in (out / "cells").iterdir()) == ["convolution-s8.json"]
+    assert [item.method for item in replaced.measurements] == ["convolution"]
+
+
+@pytest.mark.parametrize("sizes, message", [
+    ((100000,), r"s = 100000 .* needs at least .* the largest s that fits is \d+"),
+    ((60000,), r"s = 60000 gives N = s\^4 = 1.3e\+19 values, beyond the int64 .* the largest s allowed is 55108"),
+], ids=["beyond-memory", "beyond-int64"])
+def test_a_size_that_cannot_run_is_refused_up_front(tmp_path, monkeypatch, sizes, message):
+    from sparselt.experiments import integration_benchmark
+
+    if sizes == (60000,):  # the int64 bound speaks where the machine's memory is unknown
+        monkeypatch.setattr(integration_benchmark, "_total_bytes", lambda: None)
+    with pytest.raises(ValueError, match=message):
+        run_integration_benchmark(tmp_path / "out", sizes=sizes, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_size_bound_follows_the_machine_memory(tmp_path, monkeypatch):
+    from sparselt.experiments import integration_benchmark
+
+    monkeypatch.setattr(integration_benchmark, "_total_bytes", lambda: 2**30)
+    largest = integration_benchmark.largest_size(("convolution",), 1e-4, 2**30)
+    assert integration_benchmark.minimum_bytes(largest, ("convolution",), 1e-4)[0] <= 2**30
+    assert integration_benchmark.minimum_bytes(largest + 1, ("convolution",), 1e-4)[0] > 2**30
+    with pytest.raises(ValueError, match=f"the largest s that fits is {largest}$"):
+        run_integration_benchmark(tmp_path / "out", sizes=(32, largest + 1), methods=("convolution",), progress=False)
+
+
+def test_cli_bench_integrate_refuses_a_size_with_exit_code_2(tmp_path, capsys):
+    from sparselt.cli import main
+
+    assert main(["bench", "integrate", "--sizes", "100000", "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert "s = 100000" in error and "largest s that fits" in error and "Traceback" not in error
 
 
 def test_skips_what_does_not_fit_and_records_failures(tmp_path, monkeypatch):

@@ -131,12 +131,7 @@ def thesis_value(table, row_label, column):
         number (every cell of thesis chapter 4, Table 4.1); the message names
         what is missing and lists what exists.
     """
-    data = thesis_table(table)
-    rows = [row for row in data["rows"] if _label_matches(row["label"], row_label)]
-    if not rows:
-        known = "; ".join(str(row["label"]) for row in data["rows"])
-        raise ValueError(f"thesis table {table} has no row {row_label!r}; rows: {known}")
-    cells = rows[0]["cells"]
+    cells = _row(table, row_label)["cells"]
     if column not in cells:
         raise ValueError(f"thesis table {table} has no column {column!r}; value columns: {', '.join(cells)}")
     cell = cells[column]
@@ -144,3 +139,69 @@ def thesis_value(table, row_label, column):
         raise ValueError(f"thesis table {table}, row {row_label!r}, column {column!r} is not a number "
                          f"(printed as {cell['text']!r})")
     return float(cell["value"])
+
+
+def _row(table, row_label):
+    data = thesis_table(table)
+    rows = [row for row in data["rows"] if _label_matches(row["label"], row_label)]
+    if not rows:
+        known = "; ".join(str(row["label"]) for row in data["rows"])
+        raise ValueError(f"thesis table {table} has no row {row_label!r}; rows: {known}")
+    return rows[0]
+
+
+def thesis_text(table, row_label, column):
+    """The printed text of one cell of a thesis table (LaTeX as printed, decimal commas kept).
+
+    Parameters
+    ----------
+    table : str or float
+        Table number, e.g. ``"4.1"`` for thesis chapter 4, Table 4.1, whose
+        cells are complexity expressions (``"$O(K + P)$"``) with no value.
+    row_label : str, float or sequence of str
+        As in :func:`thesis_value`.
+    column : str
+        Column header as printed.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        If the table, row or column does not exist; the message lists what exists.
+    """
+    cells = _row(table, row_label)["cells"]
+    if column not in cells:
+        raise ValueError(f"thesis table {table} has no column {column!r}; value columns: {', '.join(cells)}")
+    return cells[column]["text"]
+
+
+def thesis_rows(table, columns):
+    """Every row of a numeric thesis table: ``[(label, (value of each column, ...)), ...]`` in printed order.
+
+    Parameters
+    ----------
+    table : str or float
+        Table number, e.g. ``"8.1"`` (thesis chapter 8, Table 8.1).
+    columns : sequence of str
+        Column headers as printed, e.g. ``("Total", "Sampling")``.
+
+    Returns
+    -------
+    list of (label, tuple of float)
+        Labels as printed (``"1000x1000"``, ``"40"``); integral values as
+        ``int`` (``489``, not ``489.0``), others as ``float``.
+
+    Raises
+    ------
+    ValueError
+        As :func:`thesis_value`, for an unknown table or column or a
+        non-numeric cell.
+    """
+    rows = []
+    for row in thesis_table(table)["rows"]:
+        values = tuple(thesis_value(table, row["label"], column) for column in columns)
+        rows.append((row["label"], tuple(int(value) if value.is_integer() else value for value in values)))
+    return rows

@@ -24,11 +24,21 @@ then it has the report written. The parts live in
     the results and the files written into ``out`` (CSV, Markdown table,
     Figures 4.1 and 4.2, ``config.json``).
 
-A method whose estimated peak (:func:`estimate_peak_bytes`) does not fit in
-the memory available when its turn comes is skipped with a recorded reason
-instead of being run; a child that dies (killed for memory, say) is recorded
-as failed. Neither stops the benchmark. Sizes ``s <= check_max_size`` are
-checked against ``'convolution'``.
+A size whose signal cannot fit in this machine's memory even with the
+lightest requested method (:func:`minimum_bytes`) is refused before anything
+runs, naming the largest ``s`` that fits. A method whose estimated peak
+(:func:`estimate_peak_bytes`) does not fit in the memory available when its
+turn comes is skipped with a recorded reason instead of being run; a child
+that dies (killed for memory, say) is recorded as failed. Neither stops the
+benchmark. Sizes ``s <= check_max_size`` are checked against
+``'convolution'``.
+
+The output is an :class:`~sparselt.storage.folder.ExperimentFolder` whose
+identity is the sizes, methods, seed, repeats, density and check size: a
+rerun with the same identity resumes (every measured ``(method, s)`` is a
+cell and is not measured again), one with another identity is refused unless
+``overwrite``, and a folder holding files sparselt did not write is refused
+either way.
 
 References
 ----------
@@ -37,6 +47,7 @@ Thesis chapter 4 (sections 4.1-4.4, Table 4.1, Figures 4.1-4.2).
 
 from __future__ import annotations
 
+import numbers
 import os
 import sys
 
@@ -46,19 +57,24 @@ from ..checks import check_integer
 from ..fourier.integration import METHODS
 from ..fourier.sparse import sample_support
 from ..measurement import meminfo_bytes
-from ..provenance import check_output_folder, environment_record, write_json
+from ..provenance import environment_record
+from ..storage.folder import ExperimentFolder
 from .integration_child import CHILD_MODULE, CHILD_TIMEOUT_SECONDS, REPEAT_SECONDS, run_child
 from .integration_report import (
     CHECK_TOLERANCE,
     CSV_COLUMNS,
+    EXPECTED_EXPONENTS,
     MEMORY_FLOOR_BYTES,
-    TABLE_4_1,
+    THESIS_ROWS,
     IntegrationBenchmarkResult,
     IntegrationMeasurement,
     format_bytes,
     format_table,
+    measurement_from_record,
+    measurement_record,
     progress_line,
     summarise,
+    thesis_complexity,
     write_report,
 )
 from .integration_signal import DIMENSIONS, KEEP_AXES, THESIS_DENSITY, coefficient_count, thesis_signal
@@ -71,20 +87,25 @@ __all__ = [
     "CSV_COLUMNS",
     "DEFAULT_SIZES",
     "DIMENSIONS",
+    "EXPECTED_EXPONENTS",
     "INTERPRETER_BYTES",
     "KEEP_AXES",
+    "MAXIMUM_SIGNAL_SIZE",
     "MEMORY_FLOOR_BYTES",
     "REPEAT_SECONDS",
-    "TABLE_4_1",
     "THESIS_DENSITY",
+    "THESIS_ROWS",
     "TIME_BLOCK_VALUES",
     "IntegrationBenchmarkResult",
     "IntegrationMeasurement",
     "coefficient_count",
     "estimate_peak_bytes",
     "format_table",
+    "largest_size",
+    "minimum_bytes",
     "run_integration_benchmark",
     "sample_support",
+    "thesis_complexity",
     "thesis_signal",
 ]
 
@@ -92,6 +113,8 @@ DEFAULT_SIZES = (32, 48, 64, 96, 128)
 CHECK_MAX_SIZE = 48
 BYTES_PER_VALUE = np.dtype(np.complex128).itemsize
 INTERPRETER_BYTES = 256 * 2**20
+#: Largest N = s^4: the support's flat indices are int64.
+MAXIMUM_SIGNAL_SIZE = 2**63 - 1
 _CHILD_MODULE = CHILD_MODULE  # the module the child runs (a seam the tests replace to simulate a failing child)
 
 # -- the memory guard --------------------------------------------------------
@@ -115,6 +138,66 @@ def estimate_peak_bytes(method, size, coefficients, *, dimensions=DIMENSIONS):
         rows = min(int(coefficients), max(1, TIME_BLOCK_VALUES // points))
         return (rows * points + 2 * rows * int(size) + 2 * points) * BYTES_PER_VALUE + coefficients * dimensions * 8
     return coefficients * (dimensions * 8 + 1) + 3 * points * BYTES_PER_VALUE
+
+
+def minimum_bytes(size, methods, density):
+    """Memory one measurement at ``s = size`` needs at least: the signal (``K`` int64 indices and complex128
+    values) plus the lightest of ``methods``' estimated peaks (:func:`estimate_peak_bytes`).
+
+    Returns
+    -------
+    bytes : int
+    method : str
+        The lightest method.
+    """
+    coefficients = coefficient_count(int(size) ** DIMENSIONS, density)
+    peaks = {method: estimate_peak_bytes(method, size, coefficients) for method in methods}
+    method = min(peaks, key=peaks.get)
+    return coefficients * (8 + BYTES_PER_VALUE) + peaks[method] + INTERPRETER_BYTES, method
+
+
+def largest_size(methods, density, memory_bytes):
+    """The largest ``s`` whose :func:`minimum_bytes` fits in ``memory_bytes`` (and N = s^4 in int64); 1 if none."""
+    low, high = 1, int(MAXIMUM_SIGNAL_SIZE ** (1 / DIMENSIONS)) + 2
+    while high ** DIMENSIONS > MAXIMUM_SIGNAL_SIZE:
+        high -= 1
+    while low < high:  # the largest s with minimum_bytes(s) <= memory_bytes: bisection (it grows with s)
+        middle = (low + high + 1) // 2
+        if minimum_bytes(middle, methods, density)[0] <= memory_bytes:
+            low = middle
+        else:
+            high = middle - 1
+    return low
+
+
+def _total_bytes():
+    """This machine's memory (a seam the tests replace to simulate a small machine)."""
+    return meminfo_bytes("MemTotal")
+
+
+def _check_sizes_fit(sizes, methods, density):
+    """Refuse, before anything runs, a size that cannot fit in this machine's memory with any requested method.
+
+    Raises
+    ------
+    ValueError
+        Naming the size, what it needs, the memory there is and the largest ``s`` that fits.
+    """
+    total = _total_bytes()
+    for size in sizes:
+        if total is not None:
+            need, method = minimum_bytes(size, methods, density)
+            if need > total:
+                raise ValueError(
+                    f"sizes: s = {size} (N = {size ** DIMENSIONS:.3g}, K = "
+                    f"{coefficient_count(size ** DIMENSIONS, density):.3g} coefficients) needs at least "
+                    f"{format_bytes(need)} even with the lightest method requested ({method!r}), more than this "
+                    f"machine's {format_bytes(total)} of memory; the largest s that fits is "
+                    f"{largest_size(methods, density, total)}")
+        if size ** DIMENSIONS > MAXIMUM_SIGNAL_SIZE:
+            raise ValueError(f"sizes: s = {size} gives N = s^4 = {size ** DIMENSIONS:.3g} values, beyond the int64 "
+                             f"indices of the support (at most {MAXIMUM_SIGNAL_SIZE:.3g}); the largest s allowed is "
+                             f"{largest_size(methods, density, float('inf'))}")
 
 
 # -- the parent --------------------------------------------------------------
@@ -179,9 +262,13 @@ def _validate(sizes, methods, seed, repeats, density, check_max_size):
         A bad argument; the message names it and what is allowed.
     """
     try:
-        sizes = tuple(int(size) for size in sizes)
-    except (TypeError, ValueError):
+        sizes = tuple(sizes)
+    except TypeError:
         raise ValueError(f"sizes must be a sequence of integers such as (32, 48, 64), got {sizes!r}") from None
+    for size in sizes:
+        if isinstance(size, bool) or not isinstance(size, (numbers.Integral, np.integer)):
+            raise ValueError(f"sizes must be a sequence of integers such as (32, 48, 64), got {size!r} in {sizes!r}")
+    sizes = tuple(int(size) for size in sizes)
     if not sizes or any(size < 2 for size in sizes):
         raise ValueError(f"sizes must be a non-empty sequence of integers >= 2, got {sizes}")
     if len(set(sizes)) != len(sizes):
@@ -196,9 +283,15 @@ def _validate(sizes, methods, seed, repeats, density, check_max_size):
         raise ValueError(f"methods {methods} repeat a method")
     seed = check_integer("seed", seed, 0)
     repeats = check_integer("repeats", repeats, 1)
-    if not 0 < float(density) <= 1:
+    check_max_size = check_integer("check_max_size", check_max_size, 0)
+    try:
+        density = float(density)
+    except (TypeError, ValueError):
+        raise ValueError(f"density (the fraction K / N) must be a number in (0, 1], got {density!r}") from None
+    if not 0 < density <= 1:
         raise ValueError(f"density (the fraction K / N) must be in (0, 1], got {density!r}")
-    return tuple(sorted(sizes)), methods, int(seed), int(repeats), float(density), int(check_max_size)
+    _check_sizes_fit(sizes, methods, density)
+    return tuple(sorted(sizes)), methods, int(seed), int(repeats), density, int(check_max_size)
 
 
 def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed=0, repeats=5,
@@ -225,7 +318,8 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
     check_max_size : int, optional
         Check every method against ``'convolution'`` at sizes up to this ``s``.
     overwrite : bool, optional
-        Allow writing into a non-empty ``out``.
+        Replace a folder holding another benchmark (another identity); only
+        the files sparselt wrote there are removed.
     progress : bool, optional
         Print one line per measurement to standard error and the table to
         standard output.
@@ -237,7 +331,10 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
     Raises
     ------
     ValueError
-        A bad argument, or ``out`` not empty without ``overwrite``.
+        A bad argument (a size that cannot fit in memory names the largest
+        that does), or ``out`` holding another benchmark without
+        ``overwrite`` or files sparselt did not write
+        (:class:`~sparselt.storage.folder.FolderError`), before anything runs.
     RuntimeError
         Not on Linux: peak memory is read from ``/proc/self/status``.
 
@@ -251,46 +348,52 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
     ----------
     Thesis section 4.3 (methodology), Table 4.1, Figures 4.1 and 4.2.
     """
-    sizes, methods, seed, repeats, density, check_max_size = _validate(sizes, methods, seed, repeats, density, check_max_size)
+    sizes, methods, seed, repeats, density, check_max_size = _validate(sizes, methods, seed, repeats, density,
+                                                                       check_max_size)
     if not os.path.exists("/proc/self/status"):
         raise RuntimeError("peak memory is read from /proc/self/status, which this system lacks (Linux only)")
-    out = os.fspath(out)
-    check_output_folder(out, overwrite=overwrite)
-    os.makedirs(out, exist_ok=True)
-    config = {
+    identity = {"sizes": list(sizes), "methods": list(methods), "seed": seed, "repeats": repeats, "density": density,
+                "check_max_size": check_max_size}
+    folder = ExperimentFolder(out, kind="bench-integrate", identity=identity, overwrite=overwrite)
+    folder.inspect()  # refusals (foreign files, another identity, a lock) before anything runs
+    config = dict(identity, **{
         "experiment": "integration-benchmark",
         "thesis": "chapter 4, section 4.3, Table 4.1, Figures 4.1-4.2",
-        "sizes": list(sizes),
-        "methods": list(methods),
-        "seed": seed,
-        "repeats": repeats,
         "repeat_seconds": REPEAT_SECONDS,
-        "density": density,
         "dimensions": DIMENSIONS,
         "keep_axes": list(KEEP_AXES),
         "dtype": "complex128",
         "values": "uniform in [0, 1)",
         "time_block_values": TIME_BLOCK_VALUES,
-        "check_max_size": check_max_size,
         "check_tolerance": CHECK_TOLERANCE,
         "memory_floor_bytes": MEMORY_FLOOR_BYTES,
         "fft_threads": _fft_threads(),
         "cpu_count": os.cpu_count(),
         "memory_total_bytes": meminfo_bytes("MemTotal"),
-    }
+    })
     environment = environment_record()
-    write_json(os.path.join(out, "config.json"), {"config": config, "environment": environment})
-
-    measurements = []
-    total = len(sizes) * len(methods)
-    for size in sizes:
-        for method in methods:
-            item = _measure(size, method, seed=seed, density=density, repeats=repeats, check_max_size=check_max_size)
-            measurements.append(item)
-            if progress:
-                print(f"[{len(measurements)}/{total}] {progress_line(item)}", file=sys.stderr, flush=True)
-
-    result, table = write_report(out, summarise(tuple(measurements), sizes, methods), config, environment)
+    with folder.open():
+        folder.write_json("config.json", {"config": config, "environment": environment})
+        measurements = []
+        total = len(sizes) * len(methods)
+        for size in sizes:
+            for method in methods:
+                name = f"{method}-s{size}"
+                record = folder.cell(name)
+                if record is not None:
+                    item = measurement_from_record(record)
+                    note = " (measured by an earlier run)"
+                else:
+                    item = _measure(size, method, seed=seed, density=density, repeats=repeats,
+                                    check_max_size=check_max_size)
+                    note = ""
+                    if item.measured:  # skips and failures depend on this machine's state: tried again on a rerun
+                        folder.record_cell(name, measurement_record(item))
+                measurements.append(item)
+                if progress:
+                    print(f"[{len(measurements)}/{total}] {progress_line(item)}{note}", file=sys.stderr, flush=True)
+        result, table = write_report(folder, summarise(tuple(measurements), sizes, methods), config, environment)
+        folder.complete(measured=sum(item.measured for item in measurements), cells=total)
     if progress:
         print(table)
     return result

@@ -6,8 +6,8 @@ to compare with the complexities of Table 4.1. This module holds the results
 :class:`IntegrationBenchmarkResult` with the fitted exponents, the
 ``sum / convolution`` ratios and the agreement verdict) and writes them.
 
-Files written into ``out``
---------------------------
+Files written into the benchmark's folder
+-----------------------------------------
 ``integration.csv``
     One row per (method, s): N, K, P, status, best time, every run's time,
     peak memory, baseline, estimate, agreement error, reason.
@@ -22,6 +22,11 @@ Files written into ``out``
     The resolved configuration, :func:`~sparselt.provenance.environment_record`
     and the summary results.
 
+Every file goes through the benchmark's
+:class:`~sparselt.storage.folder.ExperimentFolder`; every table is a
+:class:`~sparselt.report.Table`; the thesis's complexities come from
+:mod:`sparselt.thesis_numbers` (Table 4.1), never typed here.
+
 References
 ----------
 Thesis chapter 4 (sections 4.1-4.4, Table 4.1, Figures 4.1-4.2).
@@ -29,28 +34,59 @@ Thesis chapter 4 (sections 4.1-4.4, Table 4.1, Figures 4.1-4.2).
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..provenance import atomic_write_bytes, write_json
+from ..report import Table, markdown_document
+from ..thesis_numbers import thesis_text
 from .integration_signal import DIMENSIONS
 
 CHECK_TOLERANCE = 1e-9
 MEMORY_FLOOR_BYTES = 4 * 2**20
 
-#: Thesis Table 4.1: name, time complexity, memory complexity; then the
-#: exponent ``e`` of ``N^e`` they imply with ``K = N / 10^4`` and ``P = N^(1/2)``.
-TABLE_4_1 = {
-    "sum": ("Sum Integration", "O(N)", "O(N)", "1 (N log N with the inverse FFT)", "1"),
-    "time": ("Fourier Time Integration (no FFT)", "O(K P)", "O(K + P)", "1.5", "0.5 to 1"),
-    "time-fft": ("Fourier Time Integration (with FFT)", "O(N log N)", "O(N)", "1 (N log N)", "1"),
-    "convolution": ("Convolution Integration", "O(P log P)", "O(K + P)", "0.5", "0.5 to 1"),
+#: The row of thesis Table 4.1 that describes each integration method.
+THESIS_ROWS = {
+    "sum": "Sum Integration",
+    "time": "Fourier Time Integration (no FFT)",
+    "time-fft": "Fourier Time Integration (with FFT)",
+    "convolution": "Convolution Integration",
 }
+#: The exponent ``e`` of ``N^e`` that Table 4.1's complexities imply with ``K = N / 10^4`` and
+#: ``P = N^(1/2)`` (thesis 4.3): ``(time, memory)`` per method. Our derivation, not a printed value.
+EXPECTED_EXPONENTS = {
+    "sum": ("1 (N log N with the inverse FFT)", "1"),
+    "time": ("1.5", "0.5 to 1"),
+    "time-fft": ("1 (N log N)", "1"),
+    "convolution": ("0.5", "0.5 to 1"),
+}
+
+
+def thesis_complexity(method):
+    """The time and memory complexity thesis Table 4.1 prints for ``method``.
+
+    Parameters
+    ----------
+    method : {'sum', 'time', 'time-fft', 'convolution'}
+
+    Returns
+    -------
+    tuple of str
+        ``(time, memory)`` as printed, without the LaTeX dollars, e.g.
+        ``('O(P \\log(P))', 'O(K + P)')`` for ``'convolution'``; read through
+        :func:`sparselt.thesis_numbers.thesis_text`.
+
+    Raises
+    ------
+    ValueError
+        An unknown method; the message lists the known ones.
+    """
+    if method not in THESIS_ROWS:
+        raise ValueError(f"thesis Table 4.1 has no row for method {method!r}; methods: {', '.join(THESIS_ROWS)}")
+    return tuple(thesis_text("4.1", THESIS_ROWS[method], column).strip("$")
+                 for column in ("Time Complexity", "Memory Complexity"))
+
 
 CSV_COLUMNS = ("method", "s", "N", "K", "P", "status", "seconds", "run_seconds", "peak_bytes", "baseline_bytes",
                "estimated_bytes", "peak_reset", "contributing_coefficients", "check_error", "reason")
@@ -277,78 +313,122 @@ def _cell(item, quantity):
     return format_seconds(item.seconds) if quantity == "time" else format_bytes(item.peak_bytes)
 
 
-def format_table(result, config):
-    """The Markdown report (``integration.md``): measured Table 4.1, exponents, ratios, agreement."""
+def complexity_table(result, config):
+    """Thesis Table 4.1 beside the fitted exponents (a :class:`~sparselt.report.Table`).
+
+    Per method: Table 4.1's time and memory complexity (through
+    :func:`thesis_complexity`), the exponent they imply
+    (:data:`EXPECTED_EXPONENTS`) and the exponent fitted to our measurements.
+    """
+    rows = []
+    for method in config["methods"]:
+        time_complexity, memory_complexity = thesis_complexity(method)
+        time_expected, memory_expected = EXPECTED_EXPONENTS[method]
+        memory_sizes = result.fit_sizes["memory"][method]
+        if result.memory_exponents[method] is not None:
+            memory_note = f" (s = {', '.join(map(str, memory_sizes))})"
+        else:
+            memory_note = f" (fewer than two peaks above {format_bytes(MEMORY_FLOOR_BYTES)})"
+        rows.append((f"{THESIS_ROWS[method]} (`{method}`)", [
+            time_complexity, time_expected, format_exponent(result.time_exponents[method]), memory_complexity,
+            memory_expected, format_exponent(result.memory_exponents[method]) + memory_note]))
+    return Table(
+        caption="Complexity (Table 4.1) and fitted exponents e (quantity ~ N^e)", label_header="method",
+        columns=["Table 4.1 time", "expected e", "fitted e (time)", "Table 4.1 memory", "expected e",
+                 "fitted e (memory)"],
+        kinds=["thesis", "", "ours", "thesis", "", "ours"], rows=rows,
+        notes=["Expected e assumes K = N / 10^4 and P = N^(1/2). Time fits use every measured size; memory fits only "
+               f"sizes with a peak above {format_bytes(MEMORY_FLOOR_BYTES)}."])
+
+
+def measurement_table(result, config, quantity):
+    """Time (``quantity='time'``) or peak memory (``'memory'``) per method and ``s`` (a :class:`~sparselt.report.Table`)."""
     sizes = config["sizes"]
-    methods = config["methods"]
     lookup = {(item.method, item.size): item for item in result.measurements}
-    header_sizes = " | ".join(f"s={size} (N={size ** DIMENSIONS:.2g})" for size in sizes)
-    rule = "|---" * (len(sizes) + 1) + "|"
-    lines = [
+    return Table(
+        caption="Time" if quantity == "time" else "Peak memory", label_header="method",
+        columns=[f"s={size} (N={size ** DIMENSIONS:.2g})" for size in sizes], kinds=["ours"] * len(sizes),
+        rows=[(method, [_cell(lookup.get((method, size)), quantity) for size in sizes]) for method in config["methods"]])
+
+
+def format_table(result, config):
+    """The Markdown report (``integration.md``): measured Table 4.1, exponents, ratios, agreement.
+
+    Parameters
+    ----------
+    result : IntegrationBenchmarkResult
+    config : dict
+        The resolved configuration (``sizes``, ``methods``, ``density``,
+        ``seed``, ``repeats``, ``fft_threads``, ``cpu_count``,
+        ``check_max_size``, ``time_block_values``).
+
+    Returns
+    -------
+    str
+    """
+    sizes = config["sizes"]
+    lookup = {(item.method, item.size): item for item in result.measurements}
+    introduction = "\n".join([
         "# Table 4.1, measured: integrating a random sparse 4-D Fourier signal",
         "",
         f"N = s^4, K = floor(N x {config['density']:g}) coefficients (random support without repetition, values "
         f"uniform in [0, 1), complex128, seed {config['seed']}), integrated over the last two axes: P = s^2 pixels. "
         f"Time: best of up to {config['repeats']} calls. Memory: peak resident memory of the `integrate` call in a "
         f"fresh process (VmHWM minus VmRSS just before the call), including ducc0's and numpy's allocations. "
-        f"{config['fft_threads']} FFT threads, {config['cpu_count']} cores.",
-        "",
-        "## Complexity (Table 4.1) and fitted exponents e (quantity ~ N^e)",
-        "",
-        "Expected e assumes K = N / 10^4 and P = N^(1/2). Time fits use every measured size; memory fits only sizes "
-        f"with a peak above {format_bytes(MEMORY_FLOOR_BYTES)}.",
-        "",
-        "| method | Table 4.1 time | expected e | fitted e (time) | Table 4.1 memory | expected e | fitted e (memory) |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for method in methods:
-        name, time_complexity, memory_complexity, time_expected, memory_expected = TABLE_4_1[method]
-        memory_sizes = result.fit_sizes["memory"][method]
-        if result.memory_exponents[method] is not None:
-            memory_note = f" (s = {', '.join(map(str, memory_sizes))})"
-        else:
-            memory_note = f" (fewer than two peaks above {format_bytes(MEMORY_FLOOR_BYTES)})"
-        lines.append(f"| {name} (`{method}`) | {time_complexity} | {time_expected} | "
-                     f"{format_exponent(result.time_exponents[method])} | {memory_complexity} | {memory_expected} | "
-                     f"{format_exponent(result.memory_exponents[method])}{memory_note} |")
-    for quantity, title in (("time", "Time"), ("memory", "Peak memory")):
-        lines += ["", f"## {title}", "", f"| method | {header_sizes} |", rule]
-        for method in methods:
-            cells = " | ".join(_cell(lookup.get((method, size)), quantity) for size in sizes)
-            lines.append(f"| {method} | {cells} |")
-    lines += ["", "## sum / convolution", ""]
+        f"{config['fft_threads']} FFT threads, {config['cpu_count']} cores."])
+    ratio = ["## sum / convolution", ""]
     if result.ratio_size is None:
-        lines.append("Not available: 'sum' and 'convolution' were not both measured at any size.")
+        ratio.append("Not available: 'sum' and 'convolution' were not both measured at any size.")
     else:
         total = lookup[("sum", result.ratio_size)]
         convolution = lookup[("convolution", result.ratio_size)]
         memory = (f"{result.memory_ratio:.3g}x" if result.memory_ratio is not None
                   else "undefined (convolution's peak was below one page)")
-        lines.append(f"At s = {result.ratio_size} (N = {result.ratio_size ** DIMENSIONS:.3g}): convolution is "
+        ratio.append(f"At s = {result.ratio_size} (N = {result.ratio_size ** DIMENSIONS:.3g}): convolution is "
                      f"{result.speed_ratio:.3g}x faster than sum ({format_seconds(total.seconds)} vs "
                      f"{format_seconds(convolution.seconds)}; target >= 1000x) and uses {memory} less peak memory "
                      f"({format_bytes(total.peak_bytes)} vs {format_bytes(convolution.peak_bytes)}).")
         if result.ratio_size != max(sizes):
-            lines.append(f"(The largest size, s = {max(sizes)}, lacks one of the two; see the notes.)")
+            ratio.append(f"(The largest size, s = {max(sizes)}, lacks one of the two; see the notes.)")
     checked = [item for item in result.measurements if item.check_error is not None]
-    lines += ["", "## Agreement with 'convolution'", ""]
+    agreement = ["## Agreement with 'convolution'", ""]
     if not checked:
-        lines.append("Not checked (no size <= check_max_size).")
+        agreement.append("Not checked (no size <= check_max_size).")
     else:
         worst = max(item.check_error for item in checked)
         verdict = "passed" if result.agreement_passed else "FAILED"
-        lines.append(f"{verdict}: at s <= {config['check_max_size']} every method equals 'convolution' within a relative "
-                     f"{CHECK_TOLERANCE:g} (largest error {worst:.2g}), on the measured signal and on the same signal "
-                     "with on-plane coefficients added (at K = N / 10^4 few coefficients reach the image).")
+        agreement.append(f"{verdict}: at s <= {config['check_max_size']} every method equals 'convolution' within a "
+                         f"relative {CHECK_TOLERANCE:g} (largest error {worst:.2g}), on the measured signal and on the "
+                         "same signal with on-plane coefficients added (at K = N / 10^4 few coefficients reach the "
+                         "image).")
     reaching = {item.size: item.contributing_coefficients for item in result.measurements
                 if item.contributing_coefficients is not None}
-    lines += ["", "## Notes", "",
-              f"- The 'time' method evaluates its basis functions in blocks of about {config['time_block_values']} values "
-              "(coefficients x output points), so its memory is O(K + P) plus a constant block.",
-              "- Coefficients reaching the image (zero integrated coordinates) in the measured signal: "
-              + ", ".join(f"s={size}: {reaching.get(size, '-')}" for size in sizes) + "."]
-    lines += [f"- s={item.size} {item.method}: {item.status}: {item.reason}" for item in result.measurements if item.reason]
-    return "\n".join(lines) + "\n"
+    notes = ["## Notes", "",
+             f"- The 'time' method evaluates its basis functions in blocks of about {config['time_block_values']} "
+             "values (coefficients x output points), so its memory is O(K + P) plus a constant block.",
+             "- Coefficients reaching the image (zero integrated coordinates) in the measured signal: "
+             + ", ".join(f"s={size}: {reaching.get(size, '-')}" for size in sizes) + "."]
+    notes += [f"- s={item.size} {item.method}: {item.status}: {item.reason}" for item in result.measurements if item.reason]
+    return markdown_document(introduction, complexity_table(result, config), measurement_table(result, config, "time"),
+                             measurement_table(result, config, "memory"), "\n".join(ratio), "\n".join(agreement),
+                             "\n".join(notes))
+
+
+def measurements_table(measurements):
+    """``integration.csv``'s table: :data:`CSV_COLUMNS`, one row per measurement (a :class:`~sparselt.report.Table`)."""
+    def optional(value, text=str):
+        return "" if value is None else text(value)
+
+    rows = []
+    for item in measurements:
+        rows.append((item.method, [
+            item.size, item.signal_size, item.coefficients, item.points, item.status,
+            optional(item.seconds, lambda value: f"{value:.6g}"), ";".join(f"{value:.6g}" for value in item.run_seconds),
+            optional(item.peak_bytes), optional(item.baseline_bytes), optional(item.estimated_bytes),
+            optional(item.peak_reset), optional(item.contributing_coefficients),
+            optional(item.check_error, lambda value: f"{value:.3g}"), item.reason]))
+    return Table(caption="Integration benchmark measurements", label_header=CSV_COLUMNS[0], columns=list(CSV_COLUMNS[1:]),
+                 rows=rows)
 
 
 def csv_text(measurements):
@@ -362,26 +442,10 @@ def csv_text(measurements):
     -------
     str
     """
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
-    for item in measurements:
-        writer.writerow([
-            item.method, item.size, item.signal_size, item.coefficients, item.points, item.status,
-            "" if item.seconds is None else f"{item.seconds:.6g}",
-            ";".join(f"{value:.6g}" for value in item.run_seconds),
-            "" if item.peak_bytes is None else item.peak_bytes,
-            "" if item.baseline_bytes is None else item.baseline_bytes,
-            "" if item.estimated_bytes is None else item.estimated_bytes,
-            "" if item.peak_reset is None else item.peak_reset,
-            "" if item.contributing_coefficients is None else item.contributing_coefficients,
-            "" if item.check_error is None else f"{item.check_error:.3g}",
-            item.reason,
-        ])
-    return buffer.getvalue()
+    return measurements_table(measurements).csv()
 
 
-def plot(measurements, methods, quantity, path):
+def plot(measurements, methods, quantity):
     """Figure 4.1 (``quantity='time'``) or 4.2 (``'memory'``): the quantity against ``N``, log-log.
 
     Parameters
@@ -390,18 +454,17 @@ def plot(measurements, methods, quantity, path):
     methods : sequence of str
         One line per method; the others' skips and failures are not annotated.
     quantity : {'time', 'memory'}
-    path : str
-        The PNG file written.
-    """
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as pyplot
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The caller writes it (``folder.write_figure``).
+    """
     import matplotlib.ticker
 
-    from ..images import save_figure
+    from ..report.plotting import pyplot
 
-    figure, axis = pyplot.subplots(figsize=(7, 5))
+    figure, axis = pyplot().subplots(figsize=(7, 5))
     sizes = sorted({item.size for item in measurements})
     styles = {"sum": ("o", "-", None), "time": ("s", "-", None), "time-fft": ("D", "--", "none"),
               "convolution": ("^", "-", None)}
@@ -414,7 +477,7 @@ def plot(measurements, methods, quantity, path):
             points = [(item.signal_size, item.peak_bytes / 2**20) for item in rows if item.peak_bytes and item.peak_bytes > 0]
         if points:
             axis.loglog(*zip(*points), marker=marker, linestyle=line, markerfacecolor=face,
-                        label=f"{TABLE_4_1[method][0]} ('{method}')")
+                        label=f"{THESIS_ROWS[method]} ('{method}')")
     if quantity == "memory":
         axis.axhline(MEMORY_FLOOR_BYTES / 2**20, color="grey", linestyle=":", linewidth=1,
                      label=f"{MEMORY_FLOOR_BYTES // 2**20} MiB (below: allocator noise, not fitted)")
@@ -437,16 +500,16 @@ def plot(measurements, methods, quantity, path):
     axis.grid(True, which="major", alpha=0.3)
     if axis.get_legend_handles_labels()[0]:
         axis.legend(fontsize=8)
-    save_figure(figure, path, dpi=120, bbox_inches="tight")
+    return figure
 
 
-def write_report(out, result, config, environment):
-    """Write every file of the report into folder ``out``.
+def write_report(folder, result, config, environment):
+    """Write every file of the report through the benchmark's folder.
 
     Parameters
     ----------
-    out : str
-        The output folder (exists).
+    folder : sparselt.storage.folder.ExperimentFolder
+        The benchmark's folder, open.
     result : IntegrationBenchmarkResult
         The summary, from :func:`summarise`.
     config : dict
@@ -462,12 +525,28 @@ def write_report(out, result, config, environment):
     table : str
         The Markdown report, as written to ``integration.md``.
     """
-    files = {name: os.path.join(out, name) for name in REPORT_FILES}
     methods = config["methods"]
     table = format_table(result, config)
-    atomic_write_bytes(files["integration.csv"], csv_text(result.measurements).encode())
-    atomic_write_bytes(files["integration.md"], table.encode())
-    plot(result.measurements, methods, "time", files["figure_4_1_time.png"])
-    plot(result.measurements, methods, "memory", files["figure_4_2_memory.png"])
-    write_json(files["config.json"], {"config": config, "environment": environment, "results": summary_record(result)})
+    folder.write_text("integration.csv", csv_text(result.measurements))
+    folder.write_text("integration.md", table)
+    folder.write_figure("figure_4_1_time.png", plot(result.measurements, methods, "time"), dpi=120, bbox_inches="tight")
+    folder.write_figure("figure_4_2_memory.png", plot(result.measurements, methods, "memory"), dpi=120,
+                        bbox_inches="tight")
+    folder.write_json("config.json", {"config": config, "environment": environment, "results": summary_record(result)})
+    files = {name: folder.path_of(name) for name in REPORT_FILES}
     return dataclasses.replace(result, files=files), table
+
+
+def measurement_record(item):
+    """One measurement as a JSON-able record (a resumable cell of the benchmark's folder)."""
+    record = dataclasses.asdict(item)
+    record["run_seconds"] = list(item.run_seconds)
+    return record
+
+
+def measurement_from_record(record):
+    """The :class:`IntegrationMeasurement` of a :func:`measurement_record`."""
+    fields = {field.name for field in dataclasses.fields(IntegrationMeasurement)}
+    values = {key: value for key, value in record.items() if key in fields}
+    values["run_seconds"] = tuple(values.get("run_seconds") or ())
+    return IntegrationMeasurement(**values)

@@ -1,4 +1,37 @@
-"""The report page of one ``sparselt compare`` run: Tables 8.1/8.2 beside the thesis, equal-time verdicts, figures."""
+"""The reports of one ``sparselt compare`` run: results.csv, Tables 8.1/8.2 and 6.2/6.3 layouts, the page.
+
+The equal-time comparison (thesis 8.1.1: *is there a gain in image quality
+for the same computation time?*) hands its finished rows to
+:func:`write_comparison_outputs`, which writes every report file through the
+run's :class:`~sparselt.storage.folder.ExperimentFolder`:
+
+``results.csv``
+    One row per (method, spp, seed): :data:`COLUMN_ORDER` first, then any
+    other key, sorted.
+``quality_vs_time.png``, ``image_grid.png``, ``crop_grid.png``
+    Thesis Figures 8.1/8.3 and 8.2/8.4 layouts (:mod:`.comparison_figures`).
+``table_8.md``, ``table_8.csv``
+    Time per phase and quality per method and spp (mean over seeds), thesis
+    Tables 8.1/8.2 beside the CoSaMP methods (depth of field).
+``equal_time.md``, ``equal_time.csv``
+    Each method's relMSE and SSIM over path tracing's at the same time.
+``table_6.md``, ``table_6.csv``
+    Guided methods in the layout of thesis Tables 6.2/6.3 (when any ran).
+``index.html``
+    The page: Table 8 beside the thesis, the figures, equal-time verdicts.
+
+This package is a sink: it takes plain rows (dicts with
+:data:`~sparselt.report.comparison_rows.RESULT_COLUMNS`), a duck-typed
+configuration (attributes ``kind``, ``shape``, ``output_resolution``,
+``spps``, ``methods``; ``map_spp`` when present) and the folder, and imports
+nothing from ``experiments/``. Thesis numbers come from
+:mod:`sparselt.thesis_numbers` only.
+
+References
+----------
+Thesis chapter 8 (8.1.1, Tables 8.1 and 8.2, Figures 8.1-8.4) and 6.2
+(Tables 6.2 and 6.3).
+"""
 
 from __future__ import annotations
 
@@ -6,13 +39,189 @@ import os
 
 import numpy as np
 
-from .page import Figure, Section, Table, write_page
+from ..thesis_numbers import thesis_rows
+from .comparison_figures import crop_grid_figure, image_grid_figure, matched_pictures, quality_figure
+from .comparison_rows import (
+    COLUMN_ORDER,
+    EXTRA_COLUMNS,
+    RESULT_COLUMNS,
+    group_mean,
+    method_spp_groups,
+    methods_in_order,
+)
+from .page import Figure, Section, page_html
+from .table import Table, markdown_document
+
+#: The relMSE's epsilon when a caller does not say (the comparison's, thesis 8.1.1).
+DEFAULT_EPSILON = 0.01
+#: Thesis Tables 8.1/8.2: the phases timed, as printed.
+THESIS_TIMES = ("Total", "Sampling", "CoSaMP", "Integration")
+#: Table 8's measured columns (means over seeds).
+TABLE_8_COLUMNS = ("Total", "Sampling", "CoSaMP", "Integration", "Other", "SSIM", "relMSE", "luminance ratio")
 
 
+def _by_size(table, columns):
+    """``{first number of the label: values}`` of a thesis table (``'1000x1000'`` -> 1000, ``'40'`` -> 40)."""
+    return {int(label.split("x")[0]): values for label, values in thesis_rows(table, columns)}
+
+
+#: Thesis Tables 8.1/8.2 (CoSaMP execution times, depth of field): our scene -> (table, thesis scene, {spp: times}).
+THESIS_TABLES = {
+    "dof-sculptures": ("8.1", "Dragons", _by_size("8.1", THESIS_TIMES)),
+    "courtyard": ("8.2", "San Miguel", _by_size("8.2", THESIS_TIMES)),
+}
+_GUIDING = ("Samples per Pixel", "SFT Importance Sampling Time (s)")
+_CORNELL_GUIDING = ("6.2", "Cornell Box", _by_size("6.2", _GUIDING + ("Path Tracing Time (s)",)))
+#: Thesis Tables 6.2/6.3 (SFT importance sampling): our scene -> (table, thesis scene, {image size: (spp, SFT s, PT s)}).
+THESIS_GUIDING_TABLES = {
+    "cornell-box": _CORNELL_GUIDING,
+    "cornell-caustics": _CORNELL_GUIDING,
+    "courtyard": ("6.3", "San Miguel", _by_size("6.3", _GUIDING + ("Path Tracing Time",))),
+}
+
+
+def _format(value):
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def _grid(config):
+    return (f"kind {config.kind}, grid {'x'.join(map(str, config.shape))}, "
+            f"image {'x'.join(map(str, config.output_resolution))}")
+
+
+# ---------------------------------------------------------------------------------------------- tables
+def results_csv(rows, columns=COLUMN_ORDER):
+    """``results.csv``'s text: ``columns`` first (in that order), then any other key of the rows, sorted.
+
+    Floats with six significant digits; a key a row lacks is an empty cell.
+    """
+    header = list(columns) + sorted({key for row in rows for key in row} - set(columns))
+    table = Table(caption="results", label_header=header[0], columns=header[1:],
+                  rows=[(_format(row.get(header[0], "")), [_format(row.get(key, "")) for key in header[1:]])
+                        for row in rows])
+    return table.csv()
+
+
+def table_8(rows, scene, config, *, epsilon=DEFAULT_EPSILON):
+    """Tables 8.1/8.2 layout: seconds per phase and quality per method and spp, the thesis's beside (one Table).
+
+    Means over seeds. The thesis's four times stand beside the CoSaMP
+    methods only, for the scenes of :data:`THESIS_TABLES` at kind ``dof``
+    (Tables 8.1/8.2 are depth of field); ``table_8.md`` and the page are both
+    made from this one object.
+    """
+    thesis = THESIS_TABLES.get(scene) if config.kind == "dof" else None
+    columns, kinds = ["SPP"] + list(TABLE_8_COLUMNS), [""] + ["ours"] * len(TABLE_8_COLUMNS)
+    if thesis:
+        columns += [f"thesis {name}" for name in THESIS_TIMES]
+        kinds += ["thesis"] * len(THESIS_TIMES)
+    table_rows = []
+    for method, spp, group in method_spp_groups(rows):
+        cells = [str(spp)] + [f"{group_mean(group, key):.3f}" for key in (
+            "seconds_total", "seconds_sampling", "seconds_reconstruction", "seconds_integration", "seconds_other")]
+        cells += [f"{group_mean(group, 'ssim'):.3f}", f"{group_mean(group, 'relmse'):.4g}",
+                  f"{group_mean(group, 'luminance_ratio'):.3f}"]
+        if thesis:
+            values = thesis[2].get(spp) if method.startswith("cosamp") else None
+            cells += [f"{value:g}" for value in values] if values else ["-"] * len(THESIS_TIMES)
+        table_rows.append((method, cells))
+    notes = ["Mean over seeds; kernels warmed first; CoSaMP = the reconstruction phase; "
+             f"relMSE epsilon = {epsilon}."]
+    if thesis:
+        notes.append(f"Thesis: Table {thesis[0]} ({thesis[1]}), beside the CoSaMP methods at the same spp.")
+    caption = (f"Table {thesis[0]} layout: " if thesis else "") + f"execution times (s) and quality, {scene}, {_grid(config)}"
+    return Table(caption=caption[0].upper() + caption[1:], columns=columns, kinds=kinds, rows=table_rows,
+                 notes=notes, label_header="method")
+
+
+def equal_time_table(rows, epsilon=DEFAULT_EPSILON):
+    """``equal_time.md``: per method and spp (mean over seeds), relMSE and SSIM against PT's at the same time.
+
+    relMSE ratio < 1 and SSIM ratio > 1 mean the method beats path tracing at
+    equal time; '-' where PT's runs do not reach that time (nothing is
+    extrapolated).
+    """
+    table_rows = []
+    for method, spp, group in method_spp_groups(rows):
+        if method == "pt":
+            continue
+        mean = {key: group_mean(group, key) for key in ("seconds_total", "relmse", "ssim", "luminance_ratio")}
+        pt_relmse = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
+        pt_ssim = [row["ssim_pt_equal_time"] for row in group if row.get("ssim_pt_equal_time") not in ("", None)]
+        if len(pt_relmse) == len(group) and len(pt_ssim) == len(group):
+            reference_relmse, reference_ssim = float(np.mean(pt_relmse)), float(np.mean(pt_ssim))
+            compared = [f"{reference_relmse:.4g}", f"{mean['relmse'] / reference_relmse:.2f}", f"{mean['ssim']:.3f}",
+                        f"{reference_ssim:.3f}", f"{mean['ssim'] / reference_ssim:.2f}"]
+        else:
+            compared = ["-", "-", f"{mean['ssim']:.3f}", "-", "-"]
+        table_rows.append((method, [str(spp), f"{mean['seconds_total']:.3f}", f"{mean['relmse']:.4g}", compared[0],
+                                    compared[1], compared[2], compared[3], compared[4],
+                                    f"{mean['luminance_ratio']:.3f}"]))
+    return Table(
+        caption="Equal-time quality against path tracing",
+        columns=["spp", "seconds", "relMSE", "PT relMSE same time", "relMSE ratio", "SSIM", "PT SSIM same time",
+                 "SSIM ratio", "luminance ratio"],
+        kinds=[""] + ["ours"] * 8, rows=table_rows, label_header="method",
+        notes=[f"PT's relMSE and SSIM interpolated at each method's total time (mean over seeds; relMSE epsilon = "
+               f"{epsilon}). relMSE ratio < 1 and SSIM ratio > 1: better than PT at equal time."])
+
+
+def table_6(rows, scene, config):
+    """Tables 6.2/6.3 layout for the guided methods: ``[ours, the thesis's]`` (the thesis's only for its scenes).
+
+    Ours: image size, spp, map spp, guided time, PT time at the same spp,
+    both relMSEs and the guided relMSE over PT's at equal time (mean over
+    seeds). Empty when no guided method (``guided-*``) ran.
+    """
+    guided = [row for row in rows if row["method"].startswith("guided-")]
+    if not guided:
+        return []
+    width, height = config.output_resolution
+    table_rows = []
+    for method, spp, group in method_spp_groups(guided):
+        seconds, relmse = group_mean(group, "seconds_total"), group_mean(group, "relmse")
+        pt_rows = [row for row in rows if row["method"] == "pt" and row["spp"] == spp]
+        pt_seconds = f"{group_mean(pt_rows, 'seconds_total'):.3f}" if pt_rows else "-"
+        pt_relmse = f"{group_mean(pt_rows, 'relmse'):.4g}" if pt_rows else "-"
+        equal = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
+        ratio = f"{relmse / float(np.mean(equal)):.2f}" if len(equal) == len(group) else "-"
+        map_spp = getattr(config, "map_spp", None) or 16  # the guided methods' default pilot samples per map cell
+        table_rows.append((method, [f"{width}x{height}", str(spp), str(map_spp), f"{seconds:.3f}", pt_seconds,
+                                    f"{relmse:.4g}", pt_relmse, ratio]))
+    tables = [Table(
+        caption=f"Guided rendering times (s), {scene}, image {width}x{height}, map {'x'.join(map(str, config.shape))}",
+        columns=["image size", "spp", "map spp", "guided time", "PT time (same spp)", "guided relMSE", "PT relMSE",
+                 "relMSE / PT at equal time"],
+        kinds=["", "", "", "ours", "ours", "ours", "ours", "ours"], rows=table_rows, label_header="method",
+        notes=["Guided time includes the pilot pass, the map's reconstruction and the CDFs; mean over seeds."])]
+    thesis = THESIS_GUIDING_TABLES.get(scene)
+    if thesis:
+        tables.append(Table(
+            caption=f"Thesis Table {thesis[0]} ({thesis[1]}, SFT importance sampling, 100x100x4^8 map)",
+            columns=["spp", "SFT importance sampling time", "PT time"], kinds=["thesis"] * 3,
+            rows=[(f"{size}x{size}", [str(value) for value in values]) for size, values in thesis[2].items()],
+            label_header="image size"))
+    return tables
+
+
+def results_table(rows):
+    """A plain-text table of the rows (what the CLI prints)."""
+    header = (f"{'method':18s} {'spp':>5s} {'seed':>4s} {'seconds':>8s} {'SSIM':>6s} {'relMSE':>9s} {'lum.':>6s} "
+              f"{'PT relMSE same t':>16s}")
+    lines = [header, "-" * len(header)]
+    for row in rows:
+        equal = row.get("relmse_pt_equal_time", "")
+        lines.append(f"{row['method']:18s} {row['spp']:5d} {row['seed']:4d} {row['seconds_total']:8.3f} "
+                     f"{row['ssim']:6.3f} {row['relmse']:9.4g} {row['luminance_ratio']:6.3f} "
+                     f"{(f'{equal:.4g}' if equal not in ('', None) else '-'):>16s}")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------- the page
 def equal_time_verdicts(rows):
     """One sentence per method from its relMSE against PT's at the same time (mean of the ratios over spp)."""
     verdicts = []
-    for method in dict.fromkeys(row["method"] for row in rows):
+    for method in methods_in_order(rows):
         if method == "pt":
             continue
         group = [row for row in rows if row["method"] == method and row.get("relmse_pt_equal_time") not in ("", None)]
@@ -30,43 +239,113 @@ def equal_time_verdicts(rows):
     return verdicts
 
 
-def comparison_section(folder, prefix, rows, config, scene, *, title=None):
-    """The report section of the comparison in ``folder``; file paths start with ``prefix`` (the folder
-    relative to the page). Its tables are ``table_8.md``'s (:func:`~sparselt.experiments.compare_report.table_8_rows`)."""
-    from ..experiments.compare_report import TABLE_8_COLUMNS, table_8_rows  # not at the top: compare imports this module
+FIGURES = (("quality_vs_time.png", "Figures 8.1/8.3 layout: relMSE and SSIM against time"),
+           ("image_grid.png", "Figures 8.2/8.4 layout: the methods at matched time beside the reference"),
+           ("crop_grid.png", "Details where the methods disagree most"))
+LINKS = ("results.csv", "equal_time.md", "table_8.md", "table_8.csv", "table_6.md", "compare.json")
 
-    thesis, methods = table_8_rows(rows, scene, config)
-    tables = []
-    for method, cells in methods.items():
-        columns, kinds = list(TABLE_8_COLUMNS), ["ours"] * len(TABLE_8_COLUMNS)
-        if thesis:
-            columns.append(f"thesis Table {thesis[0]} ({thesis[1]}): total / sampling / CoSaMP / integration s")
-            kinds.append("thesis")
-        table_rows = [(f"{method}, {spp} spp", values + ([" / ".join(f"{v:g}" for v in thesis_values)
-                                                          if thesis_values else "-"] if thesis else []))
-                      for spp, values, thesis_values in cells]
-        caption = (f"Table {thesis[0]} layout: execution times (s), {scene}" if thesis
-                   else f"Execution times (s) and quality, {scene}") + f" ({method})"
-        tables.append(Table(caption=caption, columns=columns, kinds=kinds, rows=table_rows))
-    join = (lambda name: f"{prefix}/{name}") if prefix else (lambda name: name)
-    figures = [Figure(join(name), caption) for name, caption in (
-        ("quality_vs_time.png", "Figures 8.1/8.3 layout: relMSE and SSIM against time"),
-        ("image_grid.png", "Figures 8.2/8.4 layout: the methods at matched time beside the reference"),
-        ("crop_grid.png", "Details where the methods disagree most"))
-        if os.path.exists(os.path.join(folder, name))]
-    links = [(name, join(name)) for name in ("results.csv", "equal_time.md", "table_8.md", "table_6.md", "compare.json")
-             if os.path.exists(os.path.join(folder, name))]
+
+def comparison_section(folder_path, prefix, rows, config, scene, *, title=None, epsilon=DEFAULT_EPSILON):
+    """The report section of the comparison in ``folder_path``: Table 8 beside the thesis, figures, verdicts, links.
+
+    Parameters
+    ----------
+    folder_path : str
+        The comparison's folder; only the figures and files it holds are shown or linked.
+    prefix : str
+        The folder relative to the page ('' when the page is in it); every path starts with it.
+    rows : list of dict
+    config
+        ``kind``, ``shape``, ``output_resolution`` (see the module docstring).
+    scene : str
+    title : str, optional
+        Default: the scene, kind, grid and image size.
+    epsilon : float, optional
+        The relMSE's epsilon (stated in the introduction and under Table 8).
+
+    Returns
+    -------
+    Section
+    """
+    folder_path = os.fspath(folder_path)
+
+    def join(name):
+        return f"{prefix}/{name}" if prefix else name
+
+    figures = [Figure(join(name), caption) for name, caption in FIGURES
+               if os.path.exists(os.path.join(folder_path, name))]
+    links = [(name, join(name)) for name in LINKS if os.path.exists(os.path.join(folder_path, name))]
     return Section(
-        title=title or (f"{scene}, kind {config.kind}, grid {'x'.join(map(str, config.shape))}, "
-                        f"image {'x'.join(map(str, config.output_resolution))}"),
-        introduction=f"{scene}, kind {config.kind}, grid {'x'.join(map(str, config.shape))}, image "
-                     f"{'x'.join(map(str, config.output_resolution))}: every method at every budget against a cached "
-                     "Mitsuba reference; relMSE epsilon 0.01; equal time means every second counted (pilot samples, "
+        title=title or f"{scene}, {_grid(config)}",
+        introduction=f"{scene}, {_grid(config)}: every method at every budget against a cached Mitsuba reference; "
+                     f"relMSE epsilon {epsilon:g}; equal time means every second counted (pilot samples, "
                      "reconstruction, filtering), kernels warmed first.",
-        tables=tables, figures=figures, verdicts=equal_time_verdicts(rows), links=links)
+        tables=[table_8(rows, scene, config, epsilon=epsilon)], figures=figures,
+        verdicts=equal_time_verdicts(rows), links=links)
 
 
-def write_comparison_page(out, rows, config, scene, provenance):
-    """``out/index.html`` for a comparison folder; returns its path."""
-    section = comparison_section(out, "", rows, config, scene)
-    return write_page(os.path.join(out, "index.html"), f"sparselt compare: {scene}", [section], provenance)
+# ---------------------------------------------------------------------------------------------- the one entry point
+def write_comparison_outputs(folder, rows, reference, config, scene, *, epsilon, image_of, provenance,
+                             columns=COLUMN_ORDER):
+    """Write every report file of a comparison through its folder (see the module docstring); return their names.
+
+    Parameters
+    ----------
+    folder : sparselt.storage.folder.ExperimentFolder
+        The comparison's folder, open (``with folder.open(): ...``).
+    rows : list of dict
+        Every finished cell's row, with the equal-time columns
+        (:func:`sparselt.experiments.equal_time.add_equal_time_columns`).
+    reference : ndarray, shape (height, width, 3)
+        The linear reference image (its exposure is every picture's).
+    config
+        Duck-typed: ``kind``, ``shape``, ``output_resolution``, ``spps``,
+        ``methods`` (``map_spp`` when present).
+    scene : str
+        The scene's name.
+    epsilon : float
+        The relMSE's epsilon.
+    image_of : callable
+        ``image_of(row)`` returns a row's linear ``(height, width, 3)`` image.
+    provenance : dict
+        :func:`~sparselt.provenance.environment_record`, shown on the page.
+    columns : sequence of str, optional
+        ``results.csv``'s leading columns (default :data:`COLUMN_ORDER`).
+
+    Returns
+    -------
+    list of str
+        The names written, relative to the folder.
+    """
+    written = []
+
+    def text(name, content):
+        folder.write_text(name, content)
+        written.append(name)
+
+    def figure(name, made):
+        folder.write_figure(name, made, dpi=110)
+        written.append(name)
+
+    text("results.csv", results_csv(rows, columns))
+    figure("quality_vs_time.png", quality_figure(rows, scene, epsilon))
+    if rows:
+        matched = matched_pictures(rows, reference, image_of)
+        figure("image_grid.png", image_grid_figure(*matched))
+        figure("crop_grid.png", crop_grid_figure(*matched))
+    for stem, table in (("table_8", table_8(rows, scene, config, epsilon=epsilon)),
+                        ("equal_time", equal_time_table(rows, epsilon))):
+        folder.write_table(stem, table)
+        written += [stem + ".md", stem + ".csv"]
+    guided = table_6(rows, scene, config)
+    if guided:
+        text("table_6.md", markdown_document(*guided))
+        text("table_6.csv", guided[0].csv())
+    section = comparison_section(folder.path, "", rows, config, scene, epsilon=epsilon)
+    text("index.html", page_html(folder.path, f"sparselt compare: {scene}", [section], provenance))
+    return written
+
+
+__all__ = ["COLUMN_ORDER", "DEFAULT_EPSILON", "EXTRA_COLUMNS", "RESULT_COLUMNS", "TABLE_8_COLUMNS", "THESIS_GUIDING_TABLES",
+           "THESIS_TABLES", "comparison_section", "equal_time_table", "equal_time_verdicts", "results_csv",
+           "results_table", "table_6", "table_8", "write_comparison_outputs"]

@@ -14,20 +14,17 @@ import os
 from dataclasses import dataclass, field
 
 from ..provenance import atomic_write_bytes
+from .table import TABLE_STYLE, Table
 
 STYLE = """
 body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; margin: 2em auto; max-width: 72em;
        color: #222; line-height: 1.45; }
 h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; margin-top: 2em; }
-table { border-collapse: collapse; margin: 1em 0; font-size: .92em; }
-th, td { border: 1px solid #ccc; padding: .3em .6em; text-align: right; }
-th { background: #f3f3f3; } td.label, th.label { text-align: left; }
-td.thesis { background: #f7f3ea; } td.ours { background: #eef5ee; }
 figure { display: inline-block; margin: 1em 1em 1em 0; max-width: 45%; vertical-align: top; }
 figure img { max-width: 100%; border: 1px solid #ddd; } figcaption { font-size: .88em; color: #444; }
 .verdict { background: #f0f4fa; border-left: 4px solid #4a6fa5; padding: .6em 1em; margin: 1em 0; }
 .provenance { font-size: .85em; color: #555; } code { font-size: .95em; }
-"""
+""" + TABLE_STYLE
 
 SELF_CHECK = """
 window.addEventListener('load', function () {
@@ -38,28 +35,6 @@ window.addEventListener('load', function () {
   document.body.setAttribute('data-broken-images', broken.join(' '));
 });
 """
-
-
-@dataclass
-class Table:
-    """A thesis table beside ours.
-
-    Attributes
-    ----------
-    caption : str
-        The thesis's caption (with its number).
-    columns : list of str
-        Column headers after the row label.
-    kinds : list of str
-        Per column, ``'thesis'``, ``'ours'`` or ``''`` (how it is shaded).
-    rows : list of (str, list)
-        Row label and one cell (text) per column.
-    """
-
-    caption: str
-    columns: list
-    kinds: list
-    rows: list
 
 
 @dataclass
@@ -86,7 +61,7 @@ class Section:
     def from_record(cls, record):
         """A section from its JSON record (``dataclasses.asdict`` of one)."""
         record = dict(record)
-        record["tables"] = [Table(**table) for table in record.get("tables", [])]
+        record["tables"] = [Table.from_record(table) for table in record.get("tables", [])]
         record["figures"] = [Figure(**figure) for figure in record.get("figures", [])]
         record["links"] = [tuple(link) for link in record.get("links", [])]
         return cls(**record)
@@ -96,26 +71,27 @@ def _escape(text):
     return html.escape(str(text), quote=True)
 
 
-def _table(table):
-    header = "".join(f"<th>{_escape(column)}</th>" for column in table.columns)
-    lines = [f"<table><caption>{_escape(table.caption)}</caption>",
-             f"<tr><th class=\"label\"></th>{header}</tr>"]
-    for label, cells in table.rows:
-        row = "".join(f"<td class=\"{kind}\">{_escape(cell)}</td>" for kind, cell in zip(table.kinds, cells))
-        lines.append(f"<tr><td class=\"label\">{_escape(label)}</td>{row}</tr>")
-    lines.append("</table>")
-    return "\n".join(lines)
+def page_html(folder, title, sections, provenance, *, note=""):
+    """The report page as HTML text; every image and link path is relative to ``folder``, where the page goes.
 
-
-def write_page(path, title, sections, provenance, *, note=""):
-    """Write the report page ``path``; every image and link path is relative to its folder.
+    Parameters
+    ----------
+    folder : str
+        The folder the page is written into (figure and link paths are checked against it).
+    title : str
+    sections : sequence of Section
+    provenance : dict
+        :func:`~sparselt.provenance.environment_record` (versions, git revision, command).
+    note : str, optional
+        A paragraph under the title.
 
     Raises
     ------
     ValueError
-        A figure or link names a file that does not exist (the page would show a broken image or link).
+        A figure or link names a file that does not exist (the page would show a broken image or link), or an
+        absolute path or URL.
     """
-    folder = os.path.dirname(os.path.abspath(path))
+    folder = os.path.abspath(os.fspath(folder))
     parts = ["<!DOCTYPE html>", "<html lang=\"en\"><head><meta charset=\"utf-8\">",
              f"<title>{_escape(title)}</title><style>{STYLE}</style></head><body>",
              f"<h1>{_escape(title)}</h1>"]
@@ -127,7 +103,7 @@ def write_page(path, title, sections, provenance, *, note=""):
             parts.append(f"<p>{_escape(section.introduction)}</p>")
         for verdict in section.verdicts:
             parts.append(f"<p class=\"verdict\">{_escape(verdict)}</p>")
-        parts.extend(_table(table) for table in section.tables)
+        parts.extend(table.html() for table in section.tables)
         for figure in section.figures:
             _check_relative(folder, figure.path)
             parts.append(f"<figure><img src=\"{_escape(figure.path)}\" alt=\"{_escape(figure.caption)}\">"
@@ -147,7 +123,23 @@ def write_page(path, title, sections, provenance, *, note=""):
                  f"{_escape(provenance.get('platform', ''))}; created {_escape(provenance.get('created', ''))}; "
                  f"command <code>{_escape(' '.join(provenance.get('command') or []))}</code>; {_escape(versions)}.</p>")
     parts.append(f"<script>{SELF_CHECK}</script></body></html>")
-    atomic_write_bytes(path, ("\n".join(parts) + "\n").encode("utf-8"))
+    return "\n".join(parts) + "\n"
+
+
+def write_page(path, title, sections, provenance, *, note=""):
+    """Write the report page ``path`` atomically (:func:`page_html`); return ``path``.
+
+    Inside an experiment folder, write :func:`page_html`'s text through the
+    folder instead (``folder.write_text('index.html', ...)``), so its manifest
+    lists the page.
+
+    Raises
+    ------
+    ValueError
+        As :func:`page_html`.
+    """
+    text = page_html(os.path.dirname(os.path.abspath(path)), title, sections, provenance, note=note)
+    atomic_write_bytes(path, text.encode("utf-8"))
     return path
 
 

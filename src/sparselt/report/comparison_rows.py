@@ -1,0 +1,78 @@
+"""A comparison's rows, grouped: what every report of ``sparselt compare`` averages over (thesis 8.1.1).
+
+A row is one ``(method, spp, seed)`` cell of an equal-time comparison, a
+plain dict with at least :data:`RESULT_COLUMNS`. The reports show means over
+seeds per ``(method, spp)``; the helpers here are the one place that groups
+and averages them. Plain Python and NumPy: nothing from ``experiments/``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: The columns every row has, in ``results.csv``'s order.
+RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", "seconds_reconstruction",
+                  "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
+#: Columns after :data:`RESULT_COLUMNS`: the contrast ratio and PT's quality at the row's time.
+EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time")
+#: ``results.csv``'s column order; any other key of the rows follows, sorted.
+COLUMN_ORDER = RESULT_COLUMNS + EXTRA_COLUMNS
+
+
+def methods_in_order(rows):
+    """The rows' methods, in order of first appearance."""
+    return list(dict.fromkeys(row["method"] for row in rows))
+
+
+def method_spp_groups(rows):
+    """``(method, spp, rows)`` per comparison cell (its rows over seeds): methods as first seen, spp ascending."""
+    for method in methods_in_order(rows):
+        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
+            yield method, spp, [row for row in rows if row["method"] == method and row["spp"] == spp]
+
+
+def group_mean(group, key):
+    """Mean of ``key`` over a cell's rows (its seeds)."""
+    return float(np.mean([row[key] for row in group]))
+
+
+def mean_curve(rows, quantity):
+    """``[(mean seconds, mean quantity)]`` per spp of one method's rows (means over seeds), sorted by time."""
+    by_spp = {}
+    for row in rows:
+        by_spp.setdefault(row["spp"], []).append(row)
+    curve = [(group_mean(group, "seconds_total"), group_mean(group, quantity)) for group in by_spp.values()]
+    return sorted(curve)
+
+
+def matched_rows(rows):
+    """One row per method, at matched time (the layout of thesis Figures 8.2/8.4).
+
+    The target is the earliest time at which every method has an image: the
+    largest over methods of each method's shortest run. Each method shows its
+    run closest to it in log time (first seed).
+
+    Returns
+    -------
+    matched : list of dict
+        One row per method, methods in order of first appearance.
+    target : float
+        The matched time (seconds).
+    """
+    if not rows:
+        raise ValueError("matched_rows needs at least one row")
+    methods = methods_in_order(rows)
+    seed = rows[0]["seed"]
+    chosen = [row for row in rows if row["seed"] == seed]
+    target = max(min(row["seconds_total"] for row in chosen if row["method"] == method) for method in methods)
+    matched = []
+    for method in methods:
+        candidates = [row for row in chosen if row["method"] == method]
+        matched.append(min(candidates, key=lambda row: abs(math.log(row["seconds_total"] / target))))
+    return matched, target
+
+
+__all__ = ["COLUMN_ORDER", "EXTRA_COLUMNS", "RESULT_COLUMNS", "group_mean", "matched_rows", "mean_curve",
+           "method_spp_groups", "methods_in_order"]
