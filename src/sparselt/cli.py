@@ -115,7 +115,8 @@ def build_parser():
     analyze.add_argument("--fractions", type=_numbers, default=None,
                          help="fractions of Fourier coefficients kept, comma separated (default: 1e-5 .. 0.1)")
     analyze.add_argument("--out", required=True, help="output folder")
-    analyze.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
+    analyze.add_argument("--overwrite", action="store_true",
+                         help="replace a folder holding another analysis (only the files sparselt wrote there)")
     analyze.set_defaults(handler=_analyze)
 
     bench = commands.add_parser("bench", help="benchmarks that write figures", description="Benchmarks.")
@@ -129,7 +130,8 @@ def build_parser():
     bench_integrate.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     bench_integrate.add_argument("--repeats", type=int, default=5, help="timed calls per measurement, best kept (default: %(default)s)")
     bench_integrate.add_argument("--out", required=True, help="output folder")
-    bench_integrate.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
+    bench_integrate.add_argument("--overwrite", action="store_true",
+                                 help="replace a folder holding another benchmark (only the files sparselt wrote there)")
     bench_integrate.set_defaults(handler=_bench_integrate)
 
     compare = commands.add_parser(
@@ -277,8 +279,8 @@ def _analyze(arguments):
     from .signal import load_signal
 
     signal = load_signal(arguments.signal)
-    check_output_folder(arguments.out, overwrite=arguments.overwrite)
-    result = analyze_signal(signal, arguments.out, gammas=arguments.gamma, fractions=arguments.fractions or DEFAULT_FRACTIONS)
+    result = analyze_signal(signal, arguments.out, gammas=arguments.gamma, fractions=arguments.fractions or DEFAULT_FRACTIONS,
+                            overwrite=arguments.overwrite)
     print(result["gamma_table"])
     print(f"wrote {arguments.out}")
     return 0
@@ -286,11 +288,10 @@ def _analyze(arguments):
 
 def _bench_integrate(arguments):
     from .experiments.integration_benchmark import run_integration_benchmark
-    from .provenance import check_output_folder
 
     check_output_folder(arguments.out, overwrite=arguments.overwrite)
     run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes), methods=arguments.methods, seed=arguments.seed,
-                              repeats=arguments.repeats, overwrite=True)
+                              repeats=arguments.repeats, overwrite=arguments.overwrite)
     return 0
 
 
@@ -346,12 +347,10 @@ def _list_methods(arguments):
 
 
 def _show(arguments):
-    from .provenance import check_output_folder
     from .signal import load_signal
     from .visualize import show_signal
 
     signal = load_signal(arguments.signal)
-    check_output_folder(arguments.out, overwrite=arguments.overwrite)
     if arguments.workers is None and arguments.scheduler is None:
         written = show_signal(signal, arguments.out)
     else:

@@ -9,33 +9,45 @@
    signal's own image by SSIM (with the one HDR convention of
    :func:`sparselt.analysis.metrics.image_ssim`).
 
-Output folder::
+Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
 
     gini.csv                  every Gini value (gamma, domain, measure, channel)
-    table_5_1_fourier.md      Table 5.1 layout: per channel, Fourier domain, gamma = 1
-    table_5_2_canonical.md    Table 5.2 layout: per channel, canonical domain, gamma = 1
-    table_7_gamma.md          Tables 7.1-7.3 layout: gamma rows, mean over channels
+    table_5_1_fourier.md/.csv    Table 5.1 layout: per channel, Fourier domain, gamma = 1
+    table_5_2_canonical.md/.csv  Table 5.2 layout: per channel, canonical domain, gamma = 1
+    table_7_gamma.md/.csv     Tables 7.1-7.3 layout: gamma rows, mean over channels
     ssim.csv                  gamma, fraction, coefficients kept, SSIM, PSNR
     ssim_vs_fraction.png      Figures 5.4, 7.1, 7.2, 7.5: one line per gamma
     thresholded.png           Figures 5.2, 5.3, 7.3, 7.4, 7.6: image grid
+    thresholded/              the grid's images (npy), per gamma and fraction
+    cells/                    one record per gamma (its Gini and SSIM rows): a rerun resumes
     analysis.json             configuration, signal metadata, provenance
+
+The folder's identity is the signal's identity (its acquisition
+configuration, its scene's content digest and a digest of its chunk
+checksums; not where it is stored), the gammas, the fractions, the grid's
+fractions and the memory limit (which decides exact or streamed Gini
+indices). A rerun with the same identity resumes; another is refused unless
+``overwrite``; a folder holding files sparselt did not write is refused
+either way. Every table is a :class:`~sparselt.report.Table`.
 """
 
 from __future__ import annotations
 
-import csv
-import io
+import hashlib
 import math
-import os
 
 import numpy as np
 
 from ..analysis.metrics import image_ssim, peak_signal_to_noise_ratio, reference_exposure
 from ..analysis.sparsity import signal_gini
 from ..analysis.threshold import check_fraction, check_gamma, gamma_map, hard_threshold_image
-from ..images import save_figure, srgb_tonemap
-from ..provenance import atomic_write_bytes, environment_record, write_json
+from ..checks import check_integer
+from ..images import srgb_tonemap
+from ..provenance import environment_record
+from ..report import Table
+from ..report.plotting import pyplot
 from ..signal import Signal
+from ..storage.folder import ExperimentFolder, signal_identity
 
 DEFAULT_GAMMAS = (1.0, 0.5, 0.25, 0.1, 0.05)
 DEFAULT_FRACTIONS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1)
@@ -45,10 +57,12 @@ MEASURES = (("canonical", False, "Time"), ("canonical", True, "Time Energy"),
 
 
 def _check_gammas(gammas):
-    gammas = tuple(gammas)
+    gammas = tuple(check_gamma(gamma) for gamma in gammas)
     if not gammas:
         raise ValueError("give at least one gamma")
-    return tuple(check_gamma(gamma) for gamma in gammas)
+    if len(set(gammas)) != len(gammas):
+        raise ValueError(f"gammas {list(gammas)} repeat a value; give each gamma once")
+    return gammas
 
 
 def _mapped_signal(signal, gamma):
@@ -56,18 +70,6 @@ def _mapped_signal(signal, gamma):
         return signal
     data = np.asarray(signal.data)
     return Signal(data=gamma_map(data, gamma).astype(np.float32), kind=signal.kind, axes=signal.axes, meta=signal.meta)
-
-
-def _write_text(path, text):
-    atomic_write_bytes(path, text.encode("utf-8"))
-
-
-def _csv(rows, header):
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(header)
-    writer.writerows(rows)
-    return buffer.getvalue()
 
 
 def gini_table(signal, gammas=DEFAULT_GAMMAS, *, memory_limit_bytes=4 * 2**30):
@@ -82,115 +84,205 @@ def gini_table(signal, gammas=DEFAULT_GAMMAS, *, memory_limit_bytes=4 * 2**30):
     return rows
 
 
-def _markdown_channel_table(rows, scene, domain, title):
-    lines = [f"{title}", "", "| Scene | Channel | Gini Magnitude | Gini Energy |", "|---|---|---|---|"]
+def channel_table(rows, scene, domain, caption):
+    """Tables 5.1/5.2 layout: per channel, the Gini index of magnitudes and energies at gamma 1 (thesis 5.4.1)."""
+    table_rows = []
     for channel in CHANNELS:
         magnitude = next(r[4] for r in rows if r[0] == 1.0 and r[1] == domain and not r[2] and r[3] == channel)
         energy = next(r[4] for r in rows if r[0] == 1.0 and r[1] == domain and r[2] and r[3] == channel)
-        lines.append(f"| {scene if channel == 'R' else ''} | {channel} | {magnitude:.6f} | {energy:.6f} |")
-    return "\n".join(lines) + "\n"
+        table_rows.append((scene if channel == "R" else "", [channel, f"{magnitude:.6f}", f"{energy:.6f}"]))
+    return Table(caption=caption, label_header="Scene", columns=["Channel", "Gini Magnitude", "Gini Energy"],
+                 kinds=["", "ours", "ours"], rows=table_rows)
 
 
-def _markdown_gamma_table(rows, gammas, title):
-    header = "| gamma | " + " | ".join(label for _, _, label in MEASURES) + " |"
-    lines = [title, "", header, "|---" * (len(MEASURES) + 1) + "|"]
+def gamma_table(rows, gammas, caption):
+    """Tables 7.1-7.3 layout: per gamma, the Gini index in both domains, of magnitudes and energies (thesis 7.1.2)."""
+    table_rows = []
     for gamma in gammas:
         cells = []
         for domain, energy, _ in MEASURES:
             values = [r[4] for r in rows if r[0] == gamma and r[1] == domain and r[2] == energy]
             cells.append(f"{np.mean(values):.4f}")
-        lines.append(f"| {gamma:.2f} | " + " | ".join(cells) + " |")
-    lines += ["", "Mean over the R, G, B channels; per-channel values in gini.csv."]
-    return "\n".join(lines) + "\n"
+        table_rows.append((f"{gamma:.2f}", cells))
+    return Table(caption=caption, label_header="gamma", columns=[label for _, _, label in MEASURES],
+                 kinds=["ours"] * len(MEASURES), rows=table_rows,
+                 notes=["Mean over the R, G, B channels; per-channel values in gini.csv."])
+
+
+def gini_csv_table(rows):
+    """``gini.csv``: one row per (gamma, domain, energy, channel): the Gini index and its error bound."""
+    return Table(caption="Gini indices", label_header="gamma",
+                 columns=["domain", "energy", "channel", "gini", "error_bound"],
+                 rows=[(str(row[0]), [str(value) for value in row[1:]]) for row in rows])
+
+
+def ssim_csv_table(rows):
+    """``ssim.csv``: one row per (gamma, fraction): coefficients kept, SSIM and PSNR of the thresholded image."""
+    return Table(caption="Hard-thresholded Fourier reconstructions", label_header="gamma",
+                 columns=["fraction", "coefficients", "ssim", "psnr_db"],
+                 rows=[(str(row[0]), [str(value) for value in row[1:]]) for row in rows])
+
+
+def analysis_identity(signal, gammas, fractions, grid_fractions, memory_limit_bytes):
+    """The identity of an analysis folder: the signal's (not its path), gammas, fractions, grid, memory limit.
+
+    A signal without chunk checksums (one built in memory) is identified by a
+    SHA-256 of its data instead.
+    """
+    identity = signal_identity(signal)
+    if identity.get("content_digest") is None:
+        data = np.ascontiguousarray(np.asarray(signal.data))
+        identity = dict(identity, content_digest="sha256:" + hashlib.sha256(data.tobytes()).hexdigest())
+    return {"signal": identity, "gammas": list(gammas), "fractions": list(fractions),
+            "grid_fractions": list(grid_fractions), "memory_limit_bytes": memory_limit_bytes}
 
 
 def analyze_signal(signal, out, *, gammas=DEFAULT_GAMMAS, fractions=DEFAULT_FRACTIONS, grid_fractions=None,
-                   progress=True, memory_limit_bytes=4 * 2**30):
-    """Run the sparsity analysis of ``signal`` and write tables and figures into ``out``.
+                   progress=True, memory_limit_bytes=4 * 2**30, overwrite=False):
+    """Run the sparsity analysis of ``signal`` and write tables and figures into the folder ``out``.
 
     Parameters
     ----------
     signal : Signal
         A complete signal (``sparselt.load_signal``).
     out : str
-        Output folder (created).
+        Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`;
+        see the module docstring).
     gammas : sequence of float
         Gamma mappings (eq. 7.1); 1 means none. Each must be > 0.
     fractions : sequence of float
         Fractions in (0, 1] of Fourier coefficients kept by hard thresholding.
     grid_fractions : sequence of float, optional
-        Fractions shown in the image grid (default: up to four of ``fractions``).
+        Fractions shown in the image grid, each one of ``fractions``
+        (default: up to four of ``fractions``).
     progress : bool
         Print one line per step.
     memory_limit_bytes : int
         Above this the Gini indices are computed by the bounded-memory path.
+    overwrite : bool
+        Replace a folder holding another analysis (only the files sparselt
+        wrote there).
 
     Returns
     -------
     dict
-        ``gini`` rows, ``ssim`` rows and the paths written.
+        ``gini`` rows ``(gamma, domain, energy, channel, value, error_bound)``,
+        ``ssim`` rows ``(gamma, fraction, coefficients, ssim, psnr_db)`` and
+        ``gamma_table`` (the Tables 7.1-7.3 layout in Markdown).
 
     Raises
     ------
     ValueError
-        A gamma <= 0 or a fraction outside (0, 1].
+        A gamma <= 0, a fraction outside (0, 1], a grid fraction not among
+        ``fractions``, or a folder holding another analysis (without
+        ``overwrite``) or files sparselt did not write: before any work.
+
+    References
+    ----------
+    Thesis 5.3 and 5.4.1 (Gini index, Tables 5.1/5.2), 7.1.2 and 7.2.1 (gamma
+    mapping, Tables 7.1-7.3, hard thresholding).
     """
     gammas = _check_gammas(gammas)
     fractions = tuple(sorted(check_fraction(fraction) for fraction in fractions))
     if not fractions:
         raise ValueError("give at least one fraction")
-    os.makedirs(out, exist_ok=True)
+    if len(set(fractions)) != len(fractions):
+        raise ValueError(f"fractions {list(fractions)} repeat a value; give each fraction once")
+    if grid_fractions:
+        grid_fractions = tuple(check_fraction(fraction) for fraction in grid_fractions)
+        missing = [fraction for fraction in grid_fractions if fraction not in fractions]
+        if missing:
+            raise ValueError(f"grid fractions {missing} are not among the fractions analysed "
+                             f"({', '.join(f'{fraction:g}' for fraction in fractions)})")
+    else:
+        grid_fractions = fractions[:: max(1, math.ceil(len(fractions) / 4))][:4]
+    memory_limit_bytes = check_integer("memory_limit_bytes", memory_limit_bytes, 1)
+    identity = analysis_identity(signal, gammas, fractions, grid_fractions, memory_limit_bytes)
+    folder = ExperimentFolder(out, kind="analyze", identity=identity, scene=signal.meta.get("scene_identity"),
+                              overwrite=overwrite)
+    folder.inspect()  # refusals before any work
     say = print if progress else (lambda *arguments, **options: None)
     scene = signal.meta.get("scene", "signal")
+    with folder.open():
+        rows, ssim_rows, images, reference = _analyze(folder, signal, gammas, fractions, grid_fractions,
+                                                      memory_limit_bytes, say)
+        for stem, domain, caption in (
+                ("table_5_1_fourier", "fourier", f"Sparsity metrics in Fourier space ({signal.kind}, Table 5.1 layout)"),
+                ("table_5_2_canonical", "canonical",
+                 f"Sparsity metrics in primary sample space ({signal.kind}, Table 5.2 layout)")):
+            folder.write_table(stem, channel_table(rows, scene, domain, caption))
+        gammas_table = gamma_table(rows, gammas, f"Gini index of {scene} ({signal.kind}) with gamma mapping "
+                                                 "(Tables 7.1-7.3 layout)")
+        folder.write_table("table_7_gamma", gammas_table)
+        folder.write_text("gini.csv", gini_csv_table(rows).csv())
+        folder.write_text("ssim.csv", ssim_csv_table(ssim_rows).csv())
+        folder.write_figure("ssim_vs_fraction.png", _plot_ssim(ssim_rows, gammas, title=f"{scene} ({signal.kind}): "
+                                                                                        "hard-thresholded Fourier"),
+                            dpi=120, bbox_inches="tight")
+        folder.write_figure("thresholded.png", _plot_grid(images, reference, gammas, grid_fractions), dpi=110,
+                            bbox_inches="tight")
+        folder.write_json("analysis.json", {
+            "signal": {key: signal.meta.get(key) for key in ("scene", "kind", "axes", "shape", "spp", "seed", "max_depth")},
+            "identity": identity,
+            "gammas": list(gammas),
+            "fractions": list(fractions),
+            "grid_fractions": list(grid_fractions),
+            "ssim_convention": "sparselt.analysis.metrics.image_ssim: both images times the reference's exposure, "
+                               "sRGB curve, SSIM with data_range 1 per channel",
+            "gamma_mapping": "T = (I / max I) ** gamma with one maximum over all channels; inverse clips T < 0 to 0",
+            "provenance": environment_record(),
+        })
+        folder.complete(gammas=len(gammas), fractions=len(fractions))
+    return {"gini": rows, "ssim": ssim_rows, "gamma_table": gammas_table.markdown()}
 
-    say(f"analyze: Gini indices for {len(gammas)} gamma values")
-    rows = gini_table(signal, gammas, memory_limit_bytes=memory_limit_bytes)
-    _write_text(os.path.join(out, "gini.csv"), _csv(rows, ["gamma", "domain", "energy", "channel", "gini", "error_bound"]))
-    _write_text(os.path.join(out, "table_5_1_fourier.md"),
-                _markdown_channel_table(rows, scene, "fourier", f"Sparsity metrics in Fourier space ({signal.kind}, Table 5.1 layout)"))
-    _write_text(os.path.join(out, "table_5_2_canonical.md"),
-                _markdown_channel_table(rows, scene, "canonical", f"Sparsity metrics in primary sample space ({signal.kind}, Table 5.2 layout)"))
-    gamma_table = _markdown_gamma_table(rows, gammas, f"Gini index of {scene} ({signal.kind}) with gamma mapping (Tables 7.1-7.3 layout)")
-    _write_text(os.path.join(out, "table_7_gamma.md"), gamma_table)
 
+def _cell_name(gamma):
+    return f"gamma-{gamma:g}"
+
+
+def _image_name(gamma, fraction):
+    return f"thresholded/gamma{gamma:g}_fraction{fraction:g}.npy"
+
+
+def _analyze(folder, signal, gammas, fractions, grid_fractions, memory_limit_bytes, say):
+    """Every gamma's Gini and SSIM rows and grid images: read from its cell, or computed and recorded as one."""
     reference = signal.image().astype(np.float64)
-    data = np.asarray(signal.data)
     size = math.prod(signal.shape)
-    ssim_rows = []
-    images = {}
-    grid_fractions = tuple(grid_fractions) if grid_fractions else fractions[:: max(1, math.ceil(len(fractions) / 4))][:4]
+    data = None
+    rows, ssim_rows, images = [], [], {}
     for gamma in gammas:
+        record = folder.cell(_cell_name(gamma))
+        if record is not None:
+            say(f"analyze: gamma {gamma:g} already done")
+            rows += [tuple(row) for row in record["gini"]]
+            ssim_rows += [tuple(row) for row in record["ssim"]]
+            for fraction in grid_fractions:
+                images[gamma, fraction] = np.load(folder.path_of(_image_name(gamma, fraction)))
+            continue
+        say(f"analyze: Gini indices at gamma {gamma:g}")
+        gini_rows = gini_table(signal, (gamma,), memory_limit_bytes=memory_limit_bytes)
+        if data is None:
+            data = np.asarray(signal.data)
+        gamma_ssim = []
         for fraction in fractions:
             image = hard_threshold_image(data, fraction, gamma=gamma).transpose(1, 0, 2)
             similarity = image_ssim(image, reference) if min(reference.shape[:2]) >= 11 else float("nan")
             peak = float(np.percentile(reference, 99.9)) or 1.0
             psnr = peak_signal_to_noise_ratio(np.clip(image, 0, peak), np.clip(reference, 0, peak), data_range=peak)
-            ssim_rows.append((gamma, fraction, max(1, math.ceil(fraction * size)), similarity, psnr))
+            gamma_ssim.append((gamma, fraction, max(1, math.ceil(fraction * size)), similarity, psnr))
             if fraction in grid_fractions:
                 images[gamma, fraction] = image
+                folder.write_npy(_image_name(gamma, fraction), image)
             say(f"analyze: gamma {gamma:g}, fraction {fraction:.0e}: SSIM {similarity:.4f}, PSNR {psnr:.2f} dB")
-    _write_text(os.path.join(out, "ssim.csv"), _csv(ssim_rows, ["gamma", "fraction", "coefficients", "ssim", "psnr_db"]))
-    _plot_ssim(ssim_rows, gammas, os.path.join(out, "ssim_vs_fraction.png"), title=f"{scene} ({signal.kind}): hard-thresholded Fourier")
-    _plot_grid(images, reference, gammas, grid_fractions, os.path.join(out, "thresholded.png"))
-
-    write_json(os.path.join(out, "analysis.json"), {
-        "signal": {key: signal.meta.get(key) for key in ("scene", "kind", "axes", "shape", "spp", "seed", "max_depth")},
-        "gammas": list(gammas),
-        "fractions": list(fractions),
-        "ssim_convention": "sparselt.analysis.metrics.image_ssim: both images times the reference's exposure, sRGB curve, SSIM with data_range 1 per channel",
-        "gamma_mapping": "T = (I / max I) ** gamma with one maximum over all channels; inverse clips T < 0 to 0",
-        "provenance": environment_record(),
-    })
-    return {"gini": rows, "ssim": ssim_rows, "gamma_table": gamma_table}
+        folder.record_cell(_cell_name(gamma), {"gini": [list(row) for row in gini_rows],
+                                               "ssim": [list(row) for row in gamma_ssim]})
+        rows += gini_rows
+        ssim_rows += gamma_ssim
+    return rows, ssim_rows, images, reference
 
 
-def _plot_ssim(rows, gammas, path, *, title):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as pyplot
-
-    figure, axis = pyplot.subplots(figsize=(6, 4))
+def _plot_ssim(rows, gammas, *, title):
+    figure, axis = pyplot().subplots(figsize=(6, 4))
     for gamma in gammas:
         points = [(row[1], row[3]) for row in rows if row[0] == gamma]
         axis.plot([p[0] for p in points], [p[1] for p in points], marker="o", label=f"gamma = {gamma:g}")
@@ -201,18 +293,13 @@ def _plot_ssim(rows, gammas, path, *, title):
     axis.grid(True, which="both", alpha=0.3)
     axis.legend()
     axis.set_title(title, fontsize=10)
-    save_figure(figure, path, dpi=120, bbox_inches="tight")
+    return figure
 
 
-def _plot_grid(images, reference, gammas, fractions, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as pyplot
-
+def _plot_grid(images, reference, gammas, fractions):
     exposure = reference_exposure(reference)
     columns = len(fractions) + 1
-    figure, panels = pyplot.subplots(len(gammas), columns, figsize=(2.4 * columns, 2.5 * len(gammas)), squeeze=False)
+    figure, panels = pyplot().subplots(len(gammas), columns, figsize=(2.4 * columns, 2.5 * len(gammas)), squeeze=False)
     for row, gamma in enumerate(gammas):
         panels[row][0].imshow(srgb_tonemap(reference, exposure))
         panels[row][0].set_title("reference", fontsize=8)
@@ -224,4 +311,4 @@ def _plot_grid(images, reference, gammas, fractions, path):
             panel.set_xticks([])
             panel.set_yticks([])
     figure.suptitle("Hard-thresholded Fourier reconstructions", fontsize=10)
-    save_figure(figure, path, dpi=110, bbox_inches="tight")
+    return figure
