@@ -29,8 +29,6 @@ from .sparsity_analysis import gini_table
 CHAPTERS = ("4", "5", "6", "7", "8", "all")
 SCALES = ("quick", "thesis")
 INTEGRATION_SIZES = {"quick": (16, 24, 32), "thesis": (32, 48, 64, 96, 128)}
-_METHOD_ROWS = (("Sum Integration", "sum"), ("Fourier Time Integration (no FFT)", "time"),
-                ("Fourier Time Integration (with FFT)", "time-fft"), ("Convolution Integration", "convolution"))
 
 
 #: Expected hours per chapter at the thesis scale on 2 cores, from this machine's measured rates: the 10-D
@@ -52,23 +50,28 @@ def _exponent(value):
 
 
 def chapter_4(scale, folder, progress):
+def table_4_1(result, sizes):
+    """Thesis Table 4.1 (its complexities, through :mod:`sparselt.thesis_numbers`) beside our fitted exponents."""
+    from .integration_report import THESIS_ROWS, thesis_complexity
+
+    rows = []
+    for method, label in THESIS_ROWS.items():
+        time_complexity, memory_complexity = thesis_complexity(method)
+        rows.append((label, [time_complexity, _exponent(result.time_exponents.get(method)), memory_complexity,
+                             _exponent(result.memory_exponents.get(method))]))
+    return Table(caption=f"Table 4.1: {thesis_table('4.1')['caption']} (ours: exponents fitted over "
+                         f"s = {', '.join(map(str, sizes))}, N = s^4, K = N / 10^4)",
+                 columns=["thesis time", "ours: time ~", "thesis memory", "ours: memory ~"],
+                 kinds=["thesis", "ours", "thesis", "ours"], rows=rows, label_header="integration method")
+
+
     """Table 4.1 and Figures 4.1/4.2: the four integration methods' time and memory against N."""
     from .integration_benchmark import run_integration_benchmark
 
     sizes = INTEGRATION_SIZES[scale]
     result = run_integration_benchmark(os.path.join(folder, "integration"), sizes=sizes,
                                        repeats=2 if scale == "quick" else 5, overwrite=True, progress=progress)
-    thesis = {row["label"]: row["cells"] for row in thesis_table("4.1")["rows"]}
-    rows = []
-    for label, method in _METHOD_ROWS:
-        cells = thesis[label]
-        rows.append((label, [cells["Time Complexity"]["text"].strip("$"), _exponent(result.time_exponents.get(method)),
-                             cells["Memory Complexity"]["text"].strip("$"),
-                             _exponent(result.memory_exponents.get(method))]))
-    table = Table(caption="Table 4.1: Complexity Comparison of the Analysed Integration Methods "
-                          f"(ours: exponents fitted over s = {', '.join(map(str, sizes))}, N = s^4, K = N / 10^4)",
-                  columns=["thesis time", "ours: time ~", "thesis memory", "ours: memory ~"],
-                  kinds=["thesis", "ours", "thesis", "ours"], rows=rows)
+    table = table_4_1(result, sizes)
     verdicts = []
     if result.speed_ratio is not None:
         verdicts.append(f"Convolution integration is {result.speed_ratio:.0f}x faster than sum integration at "
@@ -204,15 +207,14 @@ def chapter_7(scale, folder, progress):
 
 def chapter_6(scale, folder, progress):
     """Table 6.1: the SFT with the renderer as its oracle, against path tracing (`sparselt table61`)."""
-    from .sft_path_space import Table61Config, run_table61
+    from .sft_path_space import THESIS_SHAPE, Table61Config, run_table61, thesis_table_6_1
 
     shape = (16, 16) + (4,) * 8 if scale == "quick" else (100, 100) + (4,) * 8
     out = os.path.join(folder, "table61")
-    config = Table61Config(scene="cornell-box", shape=shape, alphas=(4.0, 16.0) if scale == "quick" else (4.0, 16.0, 32.0),
+    thesis_alphas = tuple(float(alpha) for alpha in thesis_table_6_1())  # Table 6.1's rows: 4, 16, 32
+    config = Table61Config(scene="cornell-box", shape=shape, alphas=thesis_alphas[:2] if scale == "quick" else thesis_alphas,
                            noise_spps=(), reference_spp=256 if scale == "quick" else 4096)
     rows = run_table61(config, out, progress=progress)
-    from .sft_path_space import THESIS_SHAPE, thesis_table_6_1
-
     thesis = thesis_table_6_1()
     table_rows = []
     size = math.prod(shape)
@@ -222,20 +224,22 @@ def chapter_6(scale, folder, progress):
             f"{reference.get('total', 0):,}" if reference else "-", f"{row['total_samples']:,}",
             f"{reference['total'] / math.prod(THESIS_SHAPE):.2f}" if reference else "-", f"{row['total_samples'] / size:.2f}",
             f"{row['sft']['relmse']:.3g}", f"{row['pt_equal_samples']['relmse']:.3g}"]))
-    table = Table(caption=f"Table 6.1: Sparse Fourier Transform Sampling Requirements (ours: cornell-box, grid "
+    table = Table(caption=f"Table 6.1: {thesis_table('6.1')['caption']} (ours: cornell-box, grid "
                           f"{'x'.join(map(str, shape))}, K = N/10^4, 1 path sample per lattice point)",
                   columns=["thesis total samples", "ours", "thesis samples / N", "ours", "ours: SFT relMSE",
                            "PT relMSE, same samples"],
                   kinds=["thesis", "ours", "thesis", "ours", "ours", "ours"], rows=table_rows)
     worst = min(row["sft"]["relmse"] / max(row["pt_equal_samples"]["relmse"], 1e-12) for row in rows)
     verdict = (f"The SFT reads {min(r['total_samples'] / size for r in rows):.2f}-"
-               f"{max(r['total_samples'] / size for r in rows):.2f} N samples (the thesis: 1.09-6.6 N) but its image "
+               f"{max(r['total_samples'] / size for r in rows):.2f} N samples (the thesis: {min(thesis_per_cell):.3g}-"
+               f"{max(thesis_per_cell):.2g} N) but its image "
                f"has at least {worst:.0f}x path tracing's relMSE at the same samples: the thesis's negative result holds.")
     maps = _sft_maps(scale, folder, progress)
     return Section(title="Chapter 6: the Sparse Fourier Transform on path space", tables=[table] + maps.tables,
                    verdicts=[verdict] + maps.verdicts,
                    figures=[Figure("chapter6/table61/figure_6_1.png", "Figure 6.1: SFT image comparison for the "
                                    "Cornell Box scene (reference, SFT at the lowest alpha, PT at the same samples)")]
+    thesis_per_cell = [reference["total"] / math.prod(THESIS_SHAPE) for reference in thesis.values()]
                    + maps.figures,
                    links=[("table_6_1.md", "chapter6/table61/table_6_1.md"),
                           ("compressibility.md", "chapter6/table61/compressibility.md")] + maps.links)
@@ -245,18 +249,19 @@ def _sft_maps(scale, folder, progress):
     """Tables 6.2/6.3 layout: SFT importance maps guiding a render at a higher resolution (thesis 6.2)."""
     from ..report.comparison import comparison_section
     from .compare import ComparisonConfig, compare
-    from .compare_report import THESIS_GUIDING_TABLES
+    from ..report.comparison import THESIS_GUIDING_TABLES
 
     quick = scale == "quick"
     config = ComparisonConfig(
         scene="cornell-caustics", kind="path", shape=(16, 16) + (4,) * 8 if quick else (100, 100) + (4,) * 8,
-        resolution=(64, 64) if quick else (1000, 1000), methods=("pt", "guided-sft"),
-        spps=(16, 64) if quick else (489,), reference_spp=1024 if quick else 16384, map_spp=1,
+        resolution=(64, 64) if quick else (thesis_size, thesis_size), methods=("pt", "guided-sft"),
+        spps=(16, 64) if quick else (thesis_spp,), reference_spp=1024 if quick else 16384, map_spp=1,
         guiding_mode="global")
     out = os.path.join(folder, "maps")
     result = compare(config, out, progress=progress, overwrite=True)
     section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics")
     thesis = THESIS_GUIDING_TABLES["cornell-caustics"]
+    thesis_size, (thesis_spp, _, _) = next(iter(thesis[2].items()))  # the thesis's smallest image: 1000x1000
     rows = [(f"{size}x{size}", [f"{values[0]}", "-", f"{values[1]}", "-", f"{values[2]}", "-"])
             for size, values in thesis[2].items()]
     width = config.output_resolution[0]
@@ -265,17 +270,17 @@ def _sft_maps(scale, folder, progress):
         plain = [row for row in result.rows if row["method"] == "pt" and row["spp"] == spp]
         rows.append((f"{width}x{width} (ours)", ["-", f"{spp}", "-", f"{guided[0]['seconds_total']:.2f}", "-",
                                                 f"{plain[0]['seconds_total']:.2f}"]))
-    section.tables = [Table(caption=f"Table {thesis[0]}: Execution times for the Cornell Box scene (ours: "
+    section.tables = [Table(caption=f"Table {thesis[0]}: {thesis_table(thesis[0])['caption']} (ours: "
                                     f"cornell-caustics, map {'x'.join(map(str, config.shape))}, seconds)",
                             columns=["thesis spp", "ours", "thesis SFT importance sampling s", "ours",
                                      "thesis PT s", "ours"],
-                            kinds=["thesis", "ours"] * 3, rows=rows)] + section.tables[1:]
+                            kinds=["thesis", "ours"] * 3, rows=rows, label_header="image size")] + section.tables
     return section
 
 
 def chapter_8(scale, folder, progress):
     """Tables 8.1/8.2 and Figures 8.1-8.4: the CoSaMP pipeline against PT at equal time (`sparselt compare`)."""
-    from ..report.comparison import comparison_section
+    from ..report.comparison import THESIS_TABLES, comparison_section
     from .compare import ComparisonConfig, compare
 
     quick = scale == "quick"
@@ -283,7 +288,8 @@ def chapter_8(scale, folder, progress):
         scene="dof-sculptures", kind="dof", shape=(64, 64, 8, 8) if quick else (250, 250, 16, 16),
         methods=("pt", "samples-mean", "cosamp", "cosamp-thesis", "bilateral", "cosamp-bilateral", "oidn",
                  "guided-cosamp", "guided-bilateral"),
-        spps=(16, 40) if quick else (40, 81, 163, 327), reference_spp=256 if quick else 4096, gamma=0.25)
+        spps=(16, 40) if quick else tuple(THESIS_TABLES["dof-sculptures"][2]),  # Table 8.1's spp
+        reference_spp=256 if quick else 4096, gamma=0.25)
     out = os.path.join(folder, "compare")
     result = compare(config, out, progress=progress, overwrite=True)
     return comparison_section(out, "chapter8/compare", result.rows, config, "dof-sculptures",

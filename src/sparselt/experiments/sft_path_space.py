@@ -43,13 +43,19 @@ from ..rendering.scenes import get_scene
 from .compare import IMAGES, RELMSE_EPSILON, quality, write_images
 
 def thesis_table_6_1():
-    """Thesis Table 6.1 (K = 65,536 of N = 6.5536e8, 100x100x4^8 path space): alpha -> sample counts."""
-    from ..thesis_numbers import thesis_value
+    """Thesis Table 6.1 (6.1.2: K = N / 10^4 of the 100x100x4^8 path space): alpha -> sample counts.
 
-    columns = {"support": "Support Detection", "magnitude": "Magnitude Estimation", "total": "Total Samples",
-               "spp": "Samples per Pixel"}
-    return {alpha: {key: int(thesis_value("6.1", str(alpha), column)) for key, column in columns.items()}
-            for alpha in (4, 16, 32)}
+    Returns
+    -------
+    dict
+        ``{alpha: {'support', 'magnitude', 'total', 'spp'}}`` for every row
+        of the table, read through :mod:`sparselt.thesis_numbers`.
+    """
+    from ..thesis_numbers import thesis_rows
+
+    keys = ("support", "magnitude", "total", "spp")
+    columns = ("Support Detection", "Magnitude Estimation", "Total Samples", "Samples per Pixel")
+    return {int(label): dict(zip(keys, values)) for label, values in thesis_rows("6.1", columns)}
 
 
 THESIS_SHAPE = (100, 100) + (4,) * 8
@@ -238,53 +244,63 @@ def _compressibility(config, spec, sparsity, out, say):
     return record
 
 
-def _write_table(out, config, rows, sparsity):
+def _table_6_1(config, rows, sparsity):
+    """Table 6.1 beside ours (one :class:`~sparselt.report.Table`): sample counts, image quality, time per run."""
+    from ..report import Table
+    from ..thesis_numbers import thesis_table
+
     thesis_rows = thesis_table_6_1()
-    header = ("| alpha | spp/point | support detection | magnitude estimation | total samples | samples per pixel "
-              "| lattice points / N | thesis total (spp) | SFT SSIM | SFT relMSE | PT same samples SSIM | "
-              "PT same samples relMSE | PT same time relMSE | seconds |")
-    lines = [f"# Table 6.1: Sparse Fourier Transform sampling requirements, {config.scene} ({config.kind}, "
-             f"grid {'x'.join(map(str, config.shape))}, K = {sparsity})", "",
-             f"Thesis: 100x100x4^8 = 6.5536e8 cells, K = 65,536; relMSE epsilon {RELMSE_EPSILON}.", "",
-             header, "|" + "---|" * 14]
-    csv_lines = ["alpha,samples_per_point,support_samples,magnitude_samples,total_samples,samples_per_pixel,"
-                 "lattice_fraction,sft_ssim,sft_relmse,pt_equal_samples_ssim,pt_equal_samples_relmse,"
-                 "pt_equal_time_relmse,seconds,thesis_total,thesis_samples_per_pixel"]
+    cells = math.prod(THESIS_SHAPE)
+    table_rows = []
     for row in rows:
         thesis = thesis_rows.get(int(row["alpha"])) if float(row["alpha"]).is_integer() else None
-        thesis_text = f"{thesis['total']:.3g} ({thesis['spp']})" if thesis else "-"
-        lines.append(
-            f"| {row['alpha']:g} | {row['samples_per_point']} | {row['support_samples']:,} | {row['magnitude_samples']:,} "
-            f"| {row['total_samples']:,} | {row['samples_per_pixel']:.1f} | {row['fraction_of_signal']:.3f} | {thesis_text} "
-            f"| {row['sft']['ssim']:.3f} | {row['sft']['relmse']:.3g} | {row['pt_equal_samples']['ssim']:.3f} "
-            f"| {row['pt_equal_samples']['relmse']:.3g} | {row['pt_equal_time']['relmse']:.3g} | {row['seconds']:.1f} |")
-        csv_lines.append(",".join(str(value) for value in (
-            row["alpha"], row["samples_per_point"], row["support_samples"], row["magnitude_samples"],
-            row["total_samples"], row["samples_per_pixel"], row["fraction_of_signal"], row["sft"]["ssim"],
-            row["sft"]["relmse"], row["pt_equal_samples"]["ssim"], row["pt_equal_samples"]["relmse"],
-            row["pt_equal_time"]["relmse"], row["seconds"], thesis["total"] if thesis else "",
-            thesis["spp"] if thesis else "")))
-    atomic_write_bytes(os.path.join(out, "table_6_1.md"), ("\n".join(lines) + "\n").encode())
-    atomic_write_bytes(os.path.join(out, "table_6_1.csv"), ("\n".join(csv_lines) + "\n").encode())
+        thesis_cells = ([str(thesis[key]) for key in ("support", "magnitude", "total", "spp")] if thesis
+                        else ["-"] * 4)
+        table_rows.append((str(row["alpha"]), [
+            str(row["samples_per_point"]), str(row["support_samples"]), str(row["magnitude_samples"]),
+            str(row["total_samples"]), f"{row['samples_per_pixel']:.1f}", f"{row['fraction_of_signal']:.3f}",
+            *thesis_cells, f"{row['sft']['ssim']:.3f}", f"{row['sft']['relmse']:.3g}",
+            f"{row['pt_equal_samples']['ssim']:.3f}", f"{row['pt_equal_samples']['relmse']:.3g}",
+            f"{row['pt_equal_time']['relmse']:.3g}", f"{row['seconds']:.1f}"]))
+    return Table(
+        caption=f"Table 6.1: {thesis_table('6.1')['caption']}, {config.scene} ({config.kind}, grid "
+                f"{'x'.join(map(str, config.shape))}, K = {sparsity})",
+        label_header="alpha",
+        columns=["samples per point", "support detection", "magnitude estimation", "total samples",
+                 "samples per pixel", "lattice points / N", "thesis support detection",
+                 "thesis magnitude estimation", "thesis total samples", "thesis samples per pixel", "SFT SSIM",
+                 "SFT relMSE", "PT same samples SSIM", "PT same samples relMSE", "PT same time relMSE", "seconds"],
+        kinds=[""] + ["ours"] * 5 + ["thesis"] * 4 + ["ours"] * 6, rows=table_rows,
+        notes=[f"Thesis: grid {'x'.join(map(str, THESIS_SHAPE))} = {cells:,} cells, K = N / 10^4 = "
+               f"{round(cells * 1e-4):,}, one path sample per lattice point; relMSE epsilon {RELMSE_EPSILON}. "
+               "PT same samples / same time: path tracing given the SFT's path samples / seconds."])
 
 
-def _write_compressibility(out, config, record, sparsity):
+def _write_table(folder, config, rows, sparsity):
+    """``table_6_1.md`` and ``table_6_1.csv`` (thesis Table 6.1 beside ours) through the experiment's folder."""
+    folder.write_table("table_6_1", _table_6_1(config, rows, sparsity))
+
+
+def _write_compressibility(folder, config, record, sparsity):
+    """``compressibility.md`` and ``.csv``: energy share of the largest lattice coefficients per samples per cell."""
+    from ..report import Table
+
     labels = ("K/N", "10 K/N", "1%", "10%")
-    lines = [f"# How compressible the rendered signal is ({config.scene}, {config.kind}, fully sampled at "
-             f"{'x'.join(map(str, record['shape']))})", "",
-             "Share of the energy (mean removed) in the largest lattice Fourier coefficients; K/N is the "
-             f"table's sparsity {sparsity} / {math.prod(config.shape)}.", "",
-             "| samples per cell | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
-    for row in record["rows"]:
-        lines.append(f"| {row['spp']} | " + " | ".join(
-            f"{row[label]['energy']:.1%} ({row[label]['coefficients']})" for label in labels) + " |")
-    atomic_write_bytes(os.path.join(out, "compressibility.md"), ("\n".join(lines) + "\n").encode())
+    table = Table(
+        caption=f"How compressible the rendered signal is ({config.scene}, {config.kind}, fully sampled at "
+                f"{'x'.join(map(str, record['shape']))})",
+        label_header="samples per cell", columns=list(labels), kinds=["ours"] * len(labels),
+        rows=[(str(row["spp"]), [f"{row[label]['energy']:.1%} ({row[label]['coefficients']})" for label in labels])
+              for row in record["rows"]],
+        notes=["Share of the energy (mean removed) in the largest lattice Fourier coefficients (their count in "
+               f"parentheses); K/N is the table's sparsity {sparsity} / {math.prod(config.shape)}."])
+    folder.write_table("compressibility", table)
 
 
-def _figure(out, rows, exposure):
-    """Figures 6.1/6.2: reference, the SFT image at the lowest alpha, PT at the same samples."""
+def _figure(folder, rows, exposure):
+    """Figures 6.1/6.2 (``figure_6_1.png``): reference, the SFT image at the lowest alpha, PT at the same samples."""
     from ..images import srgb_tonemap
-    from .compare_report import _pyplot
+    from ..report.plotting import pyplot
 
     if not rows:
         return
@@ -295,12 +311,10 @@ def _figure(out, rows, exposure):
                                 f"relMSE {row['sft']['relmse']:.3g}"),
                 (f"pt_equal_samples_{name}", f"PT, same samples ({row['pt_equal_samples_spp']} spp): "
                                              f"relMSE {row['pt_equal_samples']['relmse']:.3g}")]
-    pyplot = _pyplot()
-    figure, axes = pyplot.subplots(1, 3, figsize=(12, 4.4))
+    figure, axes = pyplot().subplots(1, 3, figsize=(12, 4.4))
     for axis, (file, title) in zip(axes, pictures):
-        axis.imshow(srgb_tonemap(np.load(os.path.join(out, IMAGES, file + ".npy")), exposure))
+        axis.imshow(srgb_tonemap(np.load(folder.path_of(f"{IMAGES}/{file}.npy")), exposure))
         axis.set_title(title, fontsize=9)
         axis.axis("off")
     figure.tight_layout()
-    figure.savefig(os.path.join(out, "figure_6_1.png"), dpi=110)
-    pyplot.close(figure)
+    folder.write_figure("figure_6_1.png", figure, dpi=110)
