@@ -1,0 +1,132 @@
+"""A comparison's reports from plain rows (issue 18): no renderer, no `experiments/` import.
+
+`write_comparison_outputs` takes rows, a duck-typed configuration and the
+experiment folder, and writes every report file through the folder; the
+tables are the same objects in the `.md`, the `.csv` and the page.
+"""
+
+import csv
+import io
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from sparselt.report.comparison import (
+    COLUMN_ORDER,
+    RESULT_COLUMNS,
+    THESIS_TABLES,
+    equal_time_table,
+    results_csv,
+    results_table,
+    table_6,
+    table_8,
+    write_comparison_outputs,
+)
+from sparselt.storage.folder import MANIFEST_FILE, ExperimentFolder
+
+SHAPE = (16, 16, 4, 4)
+
+
+def _config(kind="dof", methods=("pt", "cosamp")):
+    return SimpleNamespace(kind=kind, shape=SHAPE, output_resolution=(16, 16), spps=(40, 81), methods=methods,
+                           map_spp=None)
+
+
+def _rows(methods=("pt", "cosamp"), spps=(40, 81), seeds=(1, 2)):
+    rows = []
+    for method in methods:
+        for spp in spps:
+            for seed in seeds:
+                seconds = spp / 40 * (1.0 if method == "pt" else 1.5)
+                rows.append({"method": method, "spp": spp, "seed": seed, "seconds_total": seconds,
+                             "seconds_sampling": seconds / 2, "seconds_reconstruction": seconds / 4,
+                             "seconds_integration": seconds / 8, "seconds_other": seconds / 8,
+                             "path_samples": 256 * spp, "ssim": 0.5 + spp / 400, "relmse": 1.0 / spp,
+                             "luminance_ratio": 1.0, "contrast_ratio": 1.0, "relmse_pt_equal_time": "",
+                             "ssim_pt_equal_time": "", "note": "a, \"b\""})
+    for row in rows:
+        if row["method"] != "pt" and row["spp"] == 40:
+            row["relmse_pt_equal_time"], row["ssim_pt_equal_time"] = 0.02, 0.6
+    return rows
+
+
+def _write(tmp_path, rows, config, scene="dof-sculptures"):
+    folder = ExperimentFolder(tmp_path / "c", kind="compare-report-test", identity={"scene": scene})
+    folder.inspect()
+    rng = np.random.default_rng(0)
+    images = {(row["method"], row["spp"], row["seed"]): rng.random((16, 16, 3)).astype(np.float32) for row in rows}
+    with folder.open():
+        written = write_comparison_outputs(folder, rows, rng.random((16, 16, 3)), config, scene, epsilon=0.01,
+                                           image_of=lambda row: images[row["method"], row["spp"], row["seed"]],
+                                           provenance={"versions": {"numpy": np.__version__}, "git": None})
+        folder.complete()
+    return folder, written
+
+
+def test_every_report_file_goes_through_the_folder(tmp_path):
+    folder, written = _write(tmp_path, _rows(), _config())
+    manifest = json.loads((tmp_path / "c" / MANIFEST_FILE).read_text())
+    for name in ("results.csv", "quality_vs_time.png", "image_grid.png", "crop_grid.png", "table_8.md", "table_8.csv",
+                 "equal_time.md", "equal_time.csv", "index.html"):
+        assert name in written and name in manifest["files"], name
+        assert (tmp_path / "c" / name).stat().st_size > 0, name
+    assert "table_6.md" not in written  # no guided method ran
+    page = (tmp_path / "c" / "index.html").read_text()
+    assert "cosamp loses to PT at equal time" in page or "cosamp beats PT at equal time" in page
+    assert 'href="table_8.csv"' in page and 'src="image_grid.png"' in page
+
+
+def test_results_csv_puts_the_column_order_first_and_quotes_through_csv(tmp_path):
+    rows = _rows()
+    parsed = list(csv.reader(io.StringIO(results_csv(rows))))
+    assert tuple(parsed[0][:len(COLUMN_ORDER)]) == COLUMN_ORDER and parsed[0][len(COLUMN_ORDER):] == ["note"]
+    assert parsed[1][-1] == 'a, "b"' and len(parsed) == len(rows) + 1
+    custom = list(csv.reader(io.StringIO(results_csv(rows, columns=("seed", "method")))))
+    assert custom[0][:2] == ["seed", "method"] and set(custom[0]) == set(parsed[0])
+    assert tuple(COLUMN_ORDER[:len(RESULT_COLUMNS)]) == RESULT_COLUMNS
+
+
+def test_table_8_puts_the_thesis_beside_cosamp_at_depth_of_field_only():
+    table = table_8(_rows(), "dof-sculptures", _config())
+    thesis = THESIS_TABLES["dof-sculptures"][2]
+    assert [table.columns[index] for index in table.thesis_columns] == [
+        "thesis Total", "thesis Sampling", "thesis CoSaMP", "thesis Integration"]
+    by_row = {(label, cells[0]): cells for label, cells in table.rows}
+    assert by_row["cosamp", "40"][-4:] == [f"{value:g}" for value in thesis[40]]
+    assert by_row["pt", "40"][-4:] == ["-"] * 4
+    assert "| method | SPP | Total | Sampling | CoSaMP | Integration |" in table.markdown()
+    assert not table_8(_rows(), "dof-sculptures", _config(kind="indirect")).thesis_columns
+    assert not table_8(_rows(), "cornell-box", _config()).thesis_columns
+
+
+def test_equal_time_table_compares_only_where_pt_reaches_the_time():
+    cells = {(label, cells[0]): cells for label, cells in equal_time_table(_rows()).rows}
+    assert set(cells) == {("cosamp", "40"), ("cosamp", "81")}  # PT itself is not compared with PT
+    assert cells["cosamp", "40"][3] == "0.02" and cells["cosamp", "81"][3] == "-"
+
+
+def test_table_6_for_guided_methods_with_the_thesis_beside(tmp_path):
+    rows = _rows(methods=("pt", "guided-sft"))
+    ours, thesis = table_6(rows, "cornell-caustics", _config(kind="path", methods=("pt", "guided-sft")))
+    assert [label for label, _ in ours.rows] == ["guided-sft", "guided-sft"]
+    assert thesis.kinds == ["thesis"] * 3 and thesis.rows[0] == ("1000x1000", ["489", "238", "199"])
+    assert table_6(_rows(), "cornell-caustics", _config()) == []
+    _, written = _write(tmp_path, rows, _config(kind="path", methods=("pt", "guided-sft")), scene="cornell-caustics")
+    assert {"table_6.md", "table_6.csv"} <= set(written)
+    assert "Thesis Table 6.2 (Cornell Box" in (tmp_path / "c" / "table_6.md").read_text()
+
+
+def test_results_table_prints_a_dash_where_pt_does_not_reach():
+    text = results_table(_rows())
+    lines = text.splitlines()
+    assert lines[0].startswith("method") and len(lines) == 2 + 8
+    assert lines[-1].rstrip().endswith("-") and "0.02" in text
+
+
+def test_writing_outside_an_open_folder_is_refused(tmp_path):
+    folder = ExperimentFolder(tmp_path / "c", kind="compare-report-test", identity={})
+    with pytest.raises(RuntimeError, match="outside 'with folder.open"):
+        write_comparison_outputs(folder, [], np.zeros((16, 16, 3)), _config(), "cornell-box", epsilon=0.01,
+                                 image_of=None, provenance={})
