@@ -14,6 +14,13 @@ a number) and its text as printed (the thesis uses a decimal comma, e.g.
 of the printed texts when a table has several label columns (Tables 5.1 and
 5.2: scene and channel).
 
+Every number of a thesis table that sparselt shows (a report's "thesis"
+column, a verdict's range, the thesis-scale settings of ``reproduce``) is read
+here, never typed elsewhere (``tests/test_thesis_number_sources.py`` greps
+the package for the tables' literals): :func:`thesis_value` for one cell,
+:func:`thesis_rows` for a table's rows, :func:`thesis_text` for a cell as
+printed (Table 4.1's complexities).
+
 Examples
 --------
 >>> thesis_value("6.1", "4", "Total Samples")
@@ -22,6 +29,10 @@ Examples
 0.4384
 >>> thesis_value("5.1", ("Cornell", "R"), "Gini Energy")
 0.999931
+>>> thesis_rows("6.2", ("Samples per Pixel",))[0]
+('1000x1000', (489,))
+>>> thesis_text("4.1", "Convolution Integration", "Memory Complexity")
+'$O(K + P)$'
 """
 
 from __future__ import annotations
