@@ -171,8 +171,19 @@ def largest_size(methods, density, memory_bytes):
 
 
 def _total_bytes():
-    """This machine's memory (a seam the tests replace to simulate a small machine)."""
-    return meminfo_bytes("MemTotal")
+    """This machine's memory: ``MemTotal``, or the cgroup's limit where lower (a container); ``None`` where unknown.
+
+    A seam the tests replace to simulate a small machine.
+    """
+    total = meminfo_bytes("MemTotal")
+    try:
+        with open("/sys/fs/cgroup/memory.max", encoding="ascii") as handle:
+            limit = handle.read().strip()
+    except OSError:
+        return total
+    if limit.isdigit():
+        return int(limit) if total is None else min(total, int(limit))
+    return total
 
 
 def _check_sizes_fit(sizes, methods, density):
