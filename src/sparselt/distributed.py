@@ -21,6 +21,29 @@ from .checks import check_integer
 WORKER_THREADS_VARIABLE = "SPARSELT_WORKER_THREADS"
 
 
+def check_worker_count(workers):
+    """``workers`` as an int in ``[1, os.cpu_count()]``: a local cluster runs one process per worker.
+
+    More worker processes than the machine has cores only compete for them
+    (and past a few hundred the cluster never finishes starting), so they
+    are refused before anything starts.
+
+    Raises
+    ------
+    TypeError
+        Not an integer.
+    ValueError
+        Below 1 or above the machine's cores; the message names both.
+    """
+    cores = os.cpu_count() or 1
+    workers = check_integer("workers", workers, 1)
+    if workers > cores:
+        raise ValueError(f"workers must be at most {cores}, the CPU cores of this machine (a local Dask cluster runs "
+                         f"one single-threaded process per worker), got {workers}; for more, start a cluster across "
+                         "machines and pass its --scheduler")
+    return workers
+
+
 def _host_of(address):
     return urlparse(address).hostname or address
 
@@ -32,7 +55,8 @@ def dask_client(*, workers=None, scheduler=None, say=print):
     Parameters
     ----------
     workers : int, optional
-        Start a ``LocalCluster`` of this many single-threaded worker processes.
+        Start a ``LocalCluster`` of this many single-threaded worker processes,
+        at most ``os.cpu_count()`` (:func:`check_worker_count`).
     scheduler : str, optional
         Address of an existing scheduler (``tcp://host:8786``).
     say : callable
@@ -48,7 +72,7 @@ def dask_client(*, workers=None, scheduler=None, say=print):
 
     cluster = None
     if scheduler is None:
-        check_integer("workers", workers, 1, 4096)
+        check_worker_count(workers)
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
         client = Client(cluster)

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_integer
 from . import fft
 from .sparse import SparseFourier
 
@@ -83,7 +84,7 @@ def integrate(representation, keep_axes=(0, 1), method="convolution", *, chunk=N
     method : {'sum', 'time', 'time-fft', 'convolution'}, optional
         See the module docstring; all agree to rounding.
     chunk : int, optional
-        Coefficients per block in the ``time`` method; by default enough for
+        Coefficients per block (at least 1) in the ``time`` method; by default enough for
         about 2^20 basis values per block, so its memory is O(K + P) plus a
         constant, as Table 4.1 says.
 
@@ -95,8 +96,10 @@ def integrate(representation, keep_axes=(0, 1), method="convolution", *, chunk=N
 
     Raises
     ------
+    TypeError
+        ``representation`` is not a SparseFourier, or ``chunk`` not an integer.
     ValueError
-        Unknown method, or ``keep_axes`` out of range or repeated.
+        Unknown method, ``keep_axes`` out of range or repeated, or ``chunk`` below 1.
 
     References
     ----------
@@ -106,6 +109,8 @@ def integrate(representation, keep_axes=(0, 1), method="convolution", *, chunk=N
         raise TypeError(f"integrate needs a SparseFourier, got {type(representation).__name__}")
     if method not in METHODS:
         raise ValueError(f"unknown integration method {method!r}; choose one of {', '.join(METHODS)}")
+    if chunk is not None:
+        chunk = check_integer("chunk", chunk, 1)
     keep, integrated = _split_axes(len(representation.shape), keep_axes)
     function = {"sum": _sum, "time": _time, "time-fft": _time_fft, "convolution": _convolution}[method]
     result = function(representation, keep, integrated, chunk) if method == "time" else function(representation, keep, integrated)

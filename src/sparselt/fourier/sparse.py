@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_integer
 from . import fft
 from .hermitian import largest_closed, partner_indices  # noqa: F401  (partner_indices re-exported)
 
@@ -100,8 +101,31 @@ class SparseFourier:
 
     @classmethod
     def from_signal(cls, signal, *, channel_axes=0):
-        """The full (dense) representation of a signal: its FFT."""
+        """The full (dense) representation of a signal: its FFT.
+
+        Parameters
+        ----------
+        signal : array_like of numbers
+            At least one grid axis, then ``channel_axes`` trailing channel axes.
+        channel_axes : int, optional
+            Trailing axes that are channels (not transformed).
+
+        Raises
+        ------
+        TypeError
+            ``signal`` is not an array of numbers.
+        ValueError
+            ``signal`` has no grid axis (a scalar) or an empty one.
+        """
+        channel_axes = check_integer("channel_axes", channel_axes, 0)
         signal = np.asarray(signal)
+        if signal.dtype.kind not in "biufc":
+            raise TypeError(f"signal must be an array of numbers, got dtype {signal.dtype}")
+        if signal.ndim - channel_axes < 1:
+            raise ValueError(f"signal must have at least one grid axis besides its {channel_axes} channel axes, got an "
+                             f"array of shape {signal.shape}" + (" (a scalar)" if signal.ndim == 0 else ""))
+        if signal.size == 0:
+            raise ValueError(f"signal must not be empty, got an array of shape {signal.shape}")
         axes = tuple(range(signal.ndim - channel_axes))
         return cls.from_spectrum(fft.fftn(signal, axes=axes), real=not np.iscomplexobj(signal), channel_axes=channel_axes)
 

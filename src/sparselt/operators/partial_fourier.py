@@ -59,11 +59,23 @@ def mean_per_cell(cells, values):
         Mean of the values of each cell (the operator's ``y``).
     counts : ndarray of int64
         Samples per cell.
+
+    Raises
+    ------
+    TypeError
+        ``cells`` are not integers.
+    ValueError
+        ``cells`` and ``values`` differ in length, or a cell is negative.
     """
-    cells = np.asarray(cells, dtype=np.int64)
+    cells = np.asarray(cells)
+    if cells.size and cells.dtype.kind not in "iu":
+        raise TypeError(f"cells must be integer cell indices, got dtype {cells.dtype}")
+    cells = cells.astype(np.int64)
     values = np.asarray(values)
     if cells.shape != values.shape[:1] or cells.ndim != 1:
         raise ValueError(f"cells and values must have one entry per sample, got shapes {cells.shape} and {values.shape}")
+    if cells.size and cells.min() < 0:
+        raise ValueError(f"cells must be flat cell indices >= 0, got {int(cells.min())}")
     unique_cells, inverse, counts = np.unique(cells, return_inverse=True, return_counts=True)
     sums = np.zeros(unique_cells.size, dtype=np.result_type(values.dtype, np.float64))
     np.add.at(sums, inverse, values)

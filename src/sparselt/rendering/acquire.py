@@ -271,10 +271,13 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         is refused when it would take more than half of the available RAM.
     overwrite : bool, optional
         Replace an existing complete signal, or an incomplete one of a
-        different configuration or scene. The old signal is removed only
-        after the new configuration is validated and the scene has loaded.
-        An incomplete signal of the same configuration and scene is always
-        resumed.
+        different configuration or scene. The new signal is written beside
+        the old one and takes its place only once complete, so the old one
+        survives a failed run. An incomplete signal of the same configuration
+        and scene is always resumed, and so is a complete one of the same
+        configuration and scene with damaged chunks (they are sampled again).
+        A folder holding files a signal store does not is refused, even with
+        ``overwrite``.
     progress : bool, optional
         Show a progress bar (samples, rate, ETA) on standard error.
     chunk_cells : int, optional
@@ -284,7 +287,8 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     scene_spec : SceneSpec, optional
         Use this scene description instead of resolving ``config.scene``.
     workers : int, optional
-        Sample on a local Dask cluster of this many worker processes.
+        Sample on a local Dask cluster of this many worker processes, at most
+        ``os.cpu_count()``.
     scheduler : str, optional
         Sample on the existing Dask cluster of this scheduler; its workers
         must reach ``path`` (a shared file system).
@@ -315,7 +319,9 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     if workers is not None and scheduler is not None:
         raise ValueError("give either workers (a local Dask cluster) or scheduler (an existing one), not both")
     if workers is not None:
-        check_integer("workers", workers, 1, 4096)
+        from ..distributed import check_worker_count
+
+        check_worker_count(workers)  # before any cluster starts: more processes than cores would only hang
     if distributed and path is None:
         raise ValueError("a distributed acquisition writes into a store: give an output path")
     spec = scene_spec if scene_spec is not None else get_scene(config.scene)
@@ -346,7 +352,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         identity = scene_identity(spec)
         check_unlocked(path)
         plan = _inspect_store(path, config, identity, overwrite=overwrite)
-        _check_disk_space(path, grid if plan != "resume" else None)  # again below with the cluster's chunking
+        _check_disk_space(path, grid if plan not in ("resume", "repair") else None)  # again with the cluster's chunking
 
     # Loading the scene checks the file (syntax, sensor, references) before anything is written or removed.
     scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
@@ -369,7 +375,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
                 job = dataclasses.replace(job, concurrency=tasks_per_host(client))
                 grid = _chunking(config, chunk_cells, parallelism=sum(job.concurrency.values()))
                 job = dataclasses.replace(job, grid=grid)
-                _check_disk_space(path, grid if plan != "resume" else None)
+                _check_disk_space(path, grid if plan not in ("resume", "repair") else None)
             return _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client)
     finally:
         _WORKER_SCENES.clear()  # the scene is not kept alive after the run
@@ -385,7 +391,20 @@ def _chunking(config, chunk_cells, *, parallelism):
 
 
 def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client):
+    """Write (or resume, repair or replace) the store at ``path`` under its lock; return the loaded signal.
+
+    A replacement ('replace') is written beside the old store, in the hidden
+    sibling :func:`~sparselt.storage.zarr_store.sibling_path` ``(path, 'new')``,
+    and exchanged with it only once complete, so the old signal survives a
+    failed run; a run killed before the exchange leaves that sibling, which
+    the next replacement of the same configuration resumes (any other run
+    removes it). A damaged complete store ('repair') has just its damaged
+    chunks sampled again, like a resume.
+    """
     grid = job.grid
+    recovered = zarr_store.recover_replacement(path)
+    if recovered and progress:
+        print(f"note: {recovered} ({path!r})")
     created = not os.path.exists(path)
     try:
         os.makedirs(path, exist_ok=True)
@@ -400,28 +419,80 @@ def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwr
         if created and not os.listdir(path):
             os.rmdir(path)
         raise
+    staging = zarr_store.sibling_path(path, "new")
+    staging_lock = None
     try:
         if lock.previous_holder:
             holder = lock.previous_holder
             print(f"note: took over the lock of a run that is gone (PID {holder.get('pid')} on {holder.get('host')})")
         plan = _inspect_store(path, config, identity, overwrite=overwrite)  # again, now that the store is ours
-        journal = ChunkJournal(path)
-        if plan == "resume":
-            meta = zarr_store.read_attributes(path)
+        target = path
+        if plan == "replace":
+            target = staging
+            os.makedirs(staging, exist_ok=True)
+            zarr_store.check_not_foreign(staging)
+            staging_lock = StoreLock(staging)
+            staging_lock.acquire()
+            resumable = (zarr_store.store_status(staging) == "incomplete"
+                         and _inspect_store(staging, config, identity, overwrite=True) == "resume")
+            plan = "resume" if resumable else "new"
+        elif os.path.isdir(staging) and not zarr_store.foreign_entries(staging):
+            shutil.rmtree(staging)  # left by an interrupted replacement; this run does not need it
+        journal = ChunkJournal(target)
+        if plan == "repair":
+            meta = zarr_store.read_attributes(target)
             grid = ChunkGrid(tuple(meta["shape"]), tuple(meta["chunk_shape"]))
-            finished = _verified_chunks(path, grid, journal, progress)
+            finished = _damaged_to_journal(target, grid, meta, journal, progress)
+        elif plan == "resume":
+            meta = zarr_store.read_attributes(target)
+            grid = ChunkGrid(tuple(meta["shape"]), tuple(meta["chunk_shape"]))
+            finished = _verified_chunks(target, grid, journal, progress)
         else:
-            zarr_store.remove_store(path)
+            zarr_store.remove_store(target)
+            zarr_store.forget_open_arrays(target)
             meta = _meta(config, spec, scene, layout, identity, grid, status="incomplete")
-            zarr_store.create_store(path, grid, layout.axes, meta)
+            zarr_store.create_store(target, grid, layout.axes, meta)
             finished = {}
-        job = dataclasses.replace(job, grid=grid, store=path)
+        job = dataclasses.replace(job, grid=grid, store=target)
         pending = [index for index in range(grid.count) if index not in finished]
-        seconds = _run_chunks(job, pending, finished, journal, progress, client)
-        return _finish(path, grid, journal, seconds)
+        _run_chunks(job, pending, finished, journal, progress, client)
+        _finish(target, grid, journal)
+        if target != path:
+            zarr_store.forget_open_arrays(target)
+            zarr_store.replace_store(target, path)
+        return load_signal(path)
     finally:
         zarr_store.forget_open_arrays(path)
+        zarr_store.forget_open_arrays(staging)
         lock.release()
+        if staging_lock is not None:
+            staging_lock.release()
+
+
+def _damaged_to_journal(path, grid, meta, journal, progress):
+    """Turn a complete store with damaged chunks back into an unfinished one whose journal lists the intact chunks.
+
+    The store is marked incomplete first, so a run killed while repairing it
+    resumes; the intact chunks keep their recorded checksums and NaN counts.
+    """
+    try:
+        checksums = zarr_store.recorded_checksums(path, meta, grid.count)
+        damaged = set(zarr_store.damaged_chunks(path, grid, checksums))
+    except zarr_store.CorruptSignalError:
+        checksums, damaged = (), set(range(grid.count))  # nothing can be verified: every chunk is sampled again
+    counts = meta.get("chunk_nonfinite")
+    if not isinstance(counts, list) or len(counts) != grid.count:
+        counts = [0] * grid.count
+    records = {index: {"crc32": checksums[index], "nonfinite": int(counts[index]), "seconds": 0.0}
+               for index in range(grid.count) if index not in damaged}
+    if progress:
+        print(f"note: {len(damaged)} of the {grid.count} chunks of the complete signal {path!r} are missing or damaged"
+              f"{f' (first: chunk {min(damaged)})' if damaged else ''}; sampling them again")
+    journal.rewrite(records)
+    meta = {key: value for key, value in meta.items() if key not in ("chunk_crc32", "chunk_nonfinite")}
+    meta["status"] = "incomplete"
+    zarr_store.write_attributes(path, meta)
+    return records
 
 
 def _acquire_in_memory(config, spec, scene, layout, job, progress):
@@ -449,15 +520,23 @@ def _acquire_in_memory(config, spec, scene, layout, job, progress):
 
 
 def _run_chunks(job, pending, finished, journal, progress, client):
-    """Sample the pending chunks, recording each in the journal as it lands; return the seconds spent."""
+    """Sample the pending chunks, recording each in the journal as it lands; return the seconds spent.
+
+    Each journal record carries the seconds since the previous one landed (or
+    the start), so the sampling time of a run that is killed is kept.
+    """
     config, grid = job.config, job.grid
     cells = math.prod(config.shape)
     done_cells = sum(grid.chunk(index)[1] for index in finished)
     bar = progress_bar(progress, total=cells * config.spp, description=f"{config.kind} {config.scene}", unit="sample",
                        initial=done_cells * config.spp)
     start = time.perf_counter()
+    last = [start]
 
     def land(record):
+        now = time.perf_counter()
+        record = dict(record, seconds=now - last[0])
+        last[0] = now
         journal.append([record])
         finished[record["chunk"]] = record
         if bar is not None:
@@ -489,8 +568,12 @@ def _run_on_dask(client, job, pending, land):
         raise
 
 
-def _finish(path, grid, journal, seconds):
-    """Mark a store complete once every chunk is in: checksums into the metadata, journal removed."""
+def _finish(path, grid, journal):
+    """Mark a store complete once every chunk is in: checksums and NaN counts into the metadata, journal removed.
+
+    ``sampling_seconds`` becomes the total over every run that sampled chunks
+    of this store (the journal's seconds added to those already recorded).
+    """
     records = journal.read()
     zarr_store.remove_temporary_files(path)
     missing = [index for index in range(grid.count) if index not in records] or zarr_store.missing_chunks(path, grid)
@@ -501,15 +584,18 @@ def _finish(path, grid, journal, seconds):
         print(f"warning: {nonfinite_total} NaN or infinite samples counted and replaced by 0")
     meta = zarr_store.read_attributes(path)
     meta.update(status="complete", nonfinite_samples=nonfinite_total,
-                chunk_crc32=[records[index]["crc32"] for index in range(grid.count)])
-    meta["sampling_seconds"] = meta.get("sampling_seconds", 0.0) + seconds
+                chunk_crc32=[records[index]["crc32"] for index in range(grid.count)],
+                chunk_nonfinite=[records[index]["nonfinite"] for index in range(grid.count)])
+    meta["sampling_seconds"] = meta.get("sampling_seconds", 0.0) + sum(record["seconds"] for record in records.values())
     zarr_store.write_attributes(path, meta)
     journal.remove()
-    return load_signal(path)
 
 
 def _verified_chunks(path, grid, journal, progress):
-    """Journal records whose chunk still matches its checksum; damaged ones are dropped (sampled again)."""
+    """Journal records whose chunk still matches its checksum; damaged ones are dropped (sampled again).
+
+    The sampling seconds of dropped records stay counted in the metadata's ``sampling_seconds``.
+    """
     records = journal.read()
     damaged = []
     for index, record in list(records.items()):
@@ -519,12 +605,15 @@ def _verified_chunks(path, grid, journal, progress):
         values = zarr_store.read_chunk(path, grid, index)
         if values is None or zarr_store.checksum(values) != record["crc32"]:
             damaged.append(index)
-    for index in damaged:
-        records.pop(index, None)
+    lost_seconds = sum(records.pop(index)["seconds"] for index in damaged if index in records)
     if damaged:
         if progress:
             print(f"note: {len(damaged)} recorded chunks of {path!r} are missing or damaged "
                   f"(first: chunk {min(damaged)}); sampling them again")
+        if lost_seconds:
+            meta = zarr_store.read_attributes(path)
+            meta["sampling_seconds"] = meta.get("sampling_seconds", 0.0) + lost_seconds
+            zarr_store.write_attributes(path, meta)
         journal.rewrite(records)
     return records
 
@@ -582,20 +671,40 @@ def _meta(config, spec, scene, layout, identity, grid, *, status):
 
 
 def _inspect_store(path, config, identity, *, overwrite):
-    """What to do with ``path``: 'new', 'resume' or 'replace' (nothing is changed here); refusals raise."""
+    """What to do with ``path``: 'new', 'resume', 'repair' or 'replace' (the store's data are not changed here).
+
+    'replace' (``overwrite``) writes the new store beside the old one and
+    swaps them once it is complete; 'repair' samples again the damaged chunks
+    of a complete store of this configuration and scene (missing, not
+    decodable, or not matching their recorded CRC-32). A folder holding
+    anything a signal store does not is refused, ``overwrite`` or not.
+    Refusals raise ValueError.
+    """
     if os.path.exists(path) and not os.path.isdir(path):
         raise ValueError(f"output path {path!r} is an existing file, not a folder")
+    if os.path.isdir(path):
+        zarr_store.check_not_foreign(path)
     status = zarr_store.store_status(path)
     if status is None:
         entries = [name for name in os.listdir(path) if name != LOCK_FILE] if os.path.isdir(path) else []
+        if zarr_store.GROUP_FILE in entries:
+            raise ValueError(f"output folder {path!r} holds a Zarr group that is not a sparselt signal ('zarr.json'); "
+                             "sparselt removes or replaces nothing there, --overwrite or not: choose another output "
+                             "folder")
         if entries and not overwrite:
             raise ValueError(f"output folder {path!r} exists, is not empty and is not a signal; "
                              "pass --overwrite or choose another path")
         return "replace" if entries else "new"
     if status == "complete":
-        if not overwrite:
-            raise ValueError(f"signal {path!r} already exists; pass --overwrite to replace it")
-        return "replace"
+        if overwrite:
+            return "replace"
+        meta = zarr_store.read_attributes(path)
+        if (_same_signal(meta.get("config") or {}, config.record())
+                and (meta.get("scene_identity") or {}).get("digest") == identity["digest"]
+                and _damaged_chunks_of_complete_store(path, meta)):
+            _record_nonfinite_policy(path, meta, config)
+            return "repair"
+        raise ValueError(f"signal {path!r} already exists; pass --overwrite to replace it")
     if status == "legacy":
         if not overwrite:
             raise ValueError(f"{path!r} holds a signal in the old .npy folder format; pass --overwrite to replace it")
@@ -619,10 +728,30 @@ def _inspect_store(path, config, identity, *, overwrite):
         raise ValueError(f"the scene of the unfinished signal {path!r} has changed since it was started"
                          f"{' (' + changed + ')' if changed else ''}; resuming would mix two scenes. "
                          "Restore the scene, or pass --overwrite to start again")
+    _record_nonfinite_policy(path, meta, config)
+    return "resume"
+
+
+def _record_nonfinite_policy(path, meta, config):
     if meta["config"].get("nonfinite") != config.nonfinite:  # the NaN policy may change on resume
         meta["config"]["nonfinite"] = config.nonfinite
         zarr_store.write_attributes(path, meta)
-    return "resume"
+
+
+def _damaged_chunks_of_complete_store(path, meta):
+    """Damaged chunks of a complete store (all of them when its checksums are unusable); ``[]`` when its
+    metadata do not describe a chunking this version can repair."""
+    shape, chunk_shape = meta.get("shape"), meta.get("chunk_shape")
+    if meta.get("format_version") != FORMAT_VERSION or not all(
+            isinstance(sizes, list) and sizes and all(type(size) is int and size > 0 for size in sizes)
+            for sizes in (shape, chunk_shape)) or len(shape) != len(chunk_shape):
+        return []
+    grid = ChunkGrid(tuple(shape), tuple(chunk_shape))
+    try:
+        checksums = zarr_store.recorded_checksums(path, meta, grid.count)
+    except zarr_store.CorruptSignalError:
+        return list(range(grid.count))
+    return zarr_store.damaged_chunks(path, grid, checksums)
 
 
 def _changed_files(recorded, current):

@@ -1,10 +1,13 @@
 """Signal storage: one Zarr v3 store per signal, an exclusive writer lock, a checksummed chunk journal.
 
 :mod:`.zarr_store` is the on-disk format (and the only module that imports
-``zarr``); :mod:`.lock` is the single-writer lock.
+``zarr``), including :class:`VerifiedArray`, the reader that checks every
+chunk against its recorded CRC-32 (:class:`CorruptSignalError` when one does
+not match); :mod:`.lock` is the single-writer lock.
 """
 
 from .lock import StoreLock, StoreLockedError
-from .zarr_store import ChunkGrid, ChunkJournal, DiskFullError, store_status
+from .zarr_store import ChunkGrid, ChunkJournal, CorruptSignalError, DiskFullError, VerifiedArray, store_status
 
-__all__ = ["ChunkGrid", "ChunkJournal", "DiskFullError", "StoreLock", "StoreLockedError", "store_status"]
+__all__ = ["ChunkGrid", "ChunkJournal", "CorruptSignalError", "DiskFullError", "StoreLock", "StoreLockedError",
+           "VerifiedArray", "store_status"]

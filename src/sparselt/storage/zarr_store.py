@@ -11,6 +11,21 @@ Layout of a signal folder ``S``::
                        durably on disk (only while incomplete)
     S/.sparselt.lock   the writer's lock (only while a run holds it)
 
+Nothing else belongs in a store: a folder holding any other entry is not
+sparselt's (:func:`foreign_entries`) and no command removes or replaces it.
+A complete store records the CRC-32 of every chunk (``chunk_crc32``), and
+every read through :class:`VerifiedArray` (what
+:func:`sparselt.signal.load_signal` returns as ``Signal.data``) checks the
+chunks it touches against them: damage raises :class:`CorruptSignalError`,
+and rerunning the ``sparselt sample`` command that wrote the store samples
+just the damaged chunks again.
+
+A store is replaced (``sample --overwrite``) by writing the new one beside it,
+in the hidden sibling ``.S.sparselt-new`` (:func:`sibling_path`), and
+exchanging the two folders once the new one is complete
+(:func:`replace_store`): at every instant ``S`` holds either the old complete
+signal or the new complete one.
+
 A chunk is the cells of a C-order contiguous run: chunks span whole trailing
 axes, have size 1 on the leading ones and cut one axis in between (see
 :class:`ChunkGrid`), so the acquisition kernel samples ``first .. first +
@@ -23,17 +38,22 @@ This is the only module that imports ``zarr``.
 
 from __future__ import annotations
 
+import ctypes
 import errno
+import itertools
 import json
 import math
+import numbers
 import os
 import shutil
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..provenance import read_json
+from .lock import LOCK_FILE
 
 FORMAT = "sparselt-signal"
 FORMAT_VERSION = 2
@@ -45,8 +65,21 @@ COMPRESSION_LEVEL = 3
 NO_SPACE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
+#: What to do about a damaged store: the ``sample`` command that wrote it samples just the damaged chunks again.
+REPAIR_REMEDY = "rerun the same `sparselt sample` command to repair it"
+#: Roles of a store's hidden siblings: the replacement being written, and the old store during a fallback swap.
+SIBLING_ROLES = ("new", "old")
+
+
 class DiskFullError(RuntimeError):
     """The device holding the store ran out of space; the run resumes once space is freed."""
+
+
+class CorruptSignalError(ValueError):
+    """A stored signal's chunk does not match its recorded CRC-32, cannot be decoded, or cannot be verified.
+
+    The message names the store, the chunk and the remedy (:data:`REPAIR_REMEDY`).
+    """
 
 
 @dataclass(frozen=True)
@@ -109,8 +142,8 @@ class ChunkGrid:
 
 
 def checksum(values):
-    """CRC-32 of a chunk's float32 data in C order."""
-    return zlib.crc32(np.ascontiguousarray(values, dtype=np.float32).tobytes()) & 0xFFFFFFFF
+    """CRC-32 of a chunk's float32 data in C order (its bytes in memory, read without a copy)."""
+    return zlib.crc32(memoryview(np.ascontiguousarray(values, dtype=np.float32)).cast("B")) & 0xFFFFFFFF
 
 
 def store_status(path):
@@ -207,6 +240,363 @@ def open_data(path):
     return zarr.open_array(os.path.join(os.fspath(path), ARRAY_NAME), mode="r", zarr_format=3)
 
 
+def recorded_checksums(path, attributes, count):
+    """The CRC-32 of every chunk recorded in a complete store's metadata (``chunk_crc32``), checked.
+
+    Parameters
+    ----------
+    path : str
+        The store (for messages).
+    attributes : dict
+        Its metadata (:func:`read_attributes`).
+    count : int
+        Its number of chunks.
+
+    Returns
+    -------
+    tuple of int
+
+    Raises
+    ------
+    CorruptSignalError
+        The list is missing, not a list of CRC-32 values, of another length
+        than the chunk count, or all zero (wiped): the chunks cannot be verified.
+    """
+    values = attributes.get("chunk_crc32")
+    where = f"signal {os.fspath(path)!r}"
+    remedy = f"its chunks cannot be verified: {REPAIR_REMEDY} (every chunk is sampled again)"
+    if values is None:
+        raise CorruptSignalError(f"{where} records no chunk checksums (attribute 'chunk_crc32' is missing from its "
+                                 f"zarr.json); {remedy}")
+    if not isinstance(values, list) or any(isinstance(value, bool) or not isinstance(value, int)
+                                           or not 0 <= value < 2**32 for value in values):
+        raise CorruptSignalError(f"{where}: attribute 'chunk_crc32' must be a list of CRC-32 values (integers in "
+                                 f"[0, 2**32)), got {str(values)[:60]}; {remedy}")
+    if len(values) != count:
+        raise CorruptSignalError(f"{where} records {len(values)} chunk checksums ('chunk_crc32') for its {count} chunks; "
+                                 f"{remedy}")
+    if not any(values):
+        raise CorruptSignalError(f"{where}: its {count} chunk checksums ('chunk_crc32') are all zero (wiped); {remedy}")
+    return tuple(values)
+
+
+#: Chunks whose CRC-32 this process has checked: ``(store, index) -> (crc32, file signature)``.
+_VERIFIED_CHUNKS = {}
+
+
+def _file_signature(path):
+    status = os.stat(path)
+    return status.st_ino, status.st_size, status.st_mtime_ns
+
+
+class VerifiedArray:
+    """A complete signal's data, read-only: every chunk read is checked against its recorded CRC-32.
+
+    The array-like that :func:`sparselt.signal.load_signal` puts in
+    ``Signal.data``: ``shape``, ``dtype``, ``ndim``, basic indexing (integers,
+    slices, ``...``) and ``numpy.asarray``. A read decodes each chunk it
+    touches whole (as Zarr does), checks the chunk's CRC-32 the first time
+    this process reads it (a chunk file that changed since is checked again)
+    and copies the selected part. Reads touching several chunks decode them
+    on a few threads. It pickles as the store's path and checksums, so Dask
+    workers (``dask.array.from_array``) verify the chunks they read too.
+
+    Parameters
+    ----------
+    path : str
+        The store.
+    grid : ChunkGrid
+        Its chunking.
+    checksums : sequence of int
+        The recorded CRC-32 of each chunk (:func:`recorded_checksums`).
+
+    Raises
+    ------
+    CorruptSignalError
+        On a read, when a chunk touched is missing, cannot be decoded or does
+        not match its checksum; the message names the store, the chunk and
+        the remedy.
+    """
+
+    def __init__(self, path, grid, checksums):
+        self.store = os.path.abspath(os.fspath(path))
+        self.grid = grid
+        self.checksums = tuple(int(value) for value in checksums)
+        if len(self.checksums) != grid.count:
+            raise ValueError(f"{len(self.checksums)} checksums for the {grid.count} chunks of {self.store!r}")
+        self.shape = tuple(grid.shape) + (3,)
+        self.chunks = tuple(grid.chunk_shape) + (3,)
+        self.dtype = np.dtype(np.float32)
+        self.ndim = len(self.shape)
+        self._zarr = None
+
+    @property
+    def size(self):
+        return math.prod(self.shape)
+
+    @property
+    def nbytes(self):
+        return self.size * self.dtype.itemsize
+
+    def __len__(self):
+        return self.shape[0]
+
+    def __repr__(self):
+        return f"VerifiedArray({self.store!r}, shape={self.shape}, dtype=float32)"
+
+    def __getstate__(self):
+        return {"store": self.store, "grid": self.grid, "checksums": self.checksums}
+
+    def __setstate__(self, state):
+        self.__init__(state["store"], state["grid"], state["checksums"])
+
+    def __dask_tokenize__(self):
+        return ("sparselt-verified-array", self.store, self.checksums)
+
+    def __array__(self, dtype=None, copy=None):
+        values = self[...]
+        return values if dtype is None else values.astype(dtype, copy=False)
+
+    def __getitem__(self, key):
+        selection = self._selection(key)
+        ranges = [range(start, stop, step) for start, stop, step, _, _ in selection]
+        out = np.empty([len(r) for r in ranges], dtype=np.float32)
+        if out.size:
+            pieces = self._pieces(ranges)
+            if len(pieces) == 1:
+                self._copy(out, *pieces[0])
+            else:
+                with ThreadPoolExecutor(max_workers=min(len(pieces), os.cpu_count() or 1, 8)) as pool:
+                    for _ in pool.map(lambda piece: self._copy(out, *piece), pieces):
+                        pass
+        index = tuple(0 if drop else slice(None, None, -1 if flip else 1) for _, _, _, drop, flip in selection)
+        return out[index]
+
+    def _selection(self, key):
+        """Per axis ``(start, stop, step, dropped, flipped)`` with ``step > 0`` (a negative step is read forwards, then flipped)."""
+        key = key if isinstance(key, tuple) else (key,)
+        ellipses = [position for position, item in enumerate(key) if item is Ellipsis]
+        if len(ellipses) > 1:
+            raise IndexError("an index can only have a single ellipsis ('...')")
+        if ellipses:
+            at = ellipses[0]
+            key = key[:at] + (slice(None),) * (self.ndim - len(key) + 1) + key[at + 1:]
+        if len(key) > self.ndim:
+            raise IndexError(f"too many indices for signal data of {self.ndim} dimensions: {len(key)} given")
+        key = key + (slice(None),) * (self.ndim - len(key))
+        selection = []
+        for axis, (item, size) in enumerate(zip(key, self.shape)):
+            if isinstance(item, (numbers.Integral, np.integer)) and not isinstance(item, (bool, np.bool_)):
+                index = int(item)
+                if not -size <= index < size:
+                    raise IndexError(f"index {index} is out of bounds for axis {axis} with size {size}")
+                index %= size
+                selection.append((index, index + 1, 1, True, False))
+            elif isinstance(item, slice):
+                indices = range(*item.indices(size))
+                flipped = indices.step < 0
+                if flipped:
+                    indices = indices[::-1]
+                selection.append((indices.start, indices.stop, indices.step, False, flipped))
+            else:
+                raise TypeError(f"signal data take integers, slices and '...' as indices (basic indexing), got "
+                                f"{type(item).__name__} for axis {axis}: read a slice, then index the array it gives")
+        return selection
+
+    def _pieces(self, ranges):
+        """``(chunk index, part of the chunk, part of the output)`` for every chunk the selection touches."""
+        touched = [np.unique(np.arange(r.start, r.stop, r.step) // size) for r, size in zip(ranges, self.chunks)]
+        pieces = []
+        for coordinates in itertools.product(*touched[:-1]):  # the RGB axis is one chunk
+            source, target = [], []
+            for r, coordinate, size, limit in zip(ranges, tuple(coordinates) + (0,), self.chunks, self.shape):
+                begin, end = int(coordinate) * size, min(int(coordinate) * size + size, limit)
+                first = r.start if r.start >= begin else r.start + -(-(begin - r.start) // r.step) * r.step
+                last = min(r.stop, end)
+                offset = (first - r.start) // r.step
+                source.append(slice(first - begin, last - begin, r.step))
+                target.append(slice(offset, offset + len(range(first, last, r.step))))
+            index = int(np.ravel_multi_index(tuple(int(c) for c in coordinates), self.grid.counts)) if coordinates else 0
+            pieces.append((index, tuple(source), tuple(target)))
+        return pieces
+
+    def _copy(self, out, index, source, target):
+        out[target] = self.chunk(index)[source]
+
+    def verify(self, index):
+        """Check chunk ``index`` against its CRC-32 (reading it only if this process has not verified it yet)."""
+        chunk_file = os.path.join(self.store, ARRAY_NAME, self.grid.chunk_key(index))
+        try:
+            if _VERIFIED_CHUNKS.get((self.store, index)) == (self.checksums[index], _file_signature(chunk_file)):
+                return
+        except FileNotFoundError:
+            pass
+        self.chunk(index)
+
+    def chunk(self, index):
+        """Chunk ``index`` as stored (shape: its region of the grid + (3,)), checked against its CRC-32."""
+        _, _, region = self.grid.chunk(index)
+        chunk_file = os.path.join(self.store, ARRAY_NAME, self.grid.chunk_key(index))
+        where = f"chunk {index} of signal {self.store!r}"
+        try:
+            signature = _file_signature(chunk_file)
+        except FileNotFoundError:
+            raise CorruptSignalError(f"{where} is missing (no file {self.grid.chunk_key(index)!r}); "
+                                     f"{REPAIR_REMEDY}") from None
+        try:
+            if self._zarr is None:
+                self._zarr = open_data(self.store)
+            values = np.asarray(self._zarr[region + (slice(None),)], dtype=np.float32)
+        except Exception as error:  # noqa: BLE001  (Zarr and its codecs raise several types for damaged bytes)
+            raise CorruptSignalError(f"{where} cannot be decoded ({type(error).__name__}: {error}); "
+                                     f"{REPAIR_REMEDY}") from None
+        expected = self.checksums[index]
+        if _VERIFIED_CHUNKS.get((self.store, index)) != (expected, signature):
+            found = checksum(values)
+            if found != expected:
+                raise CorruptSignalError(f"{where} is damaged: its CRC-32 is {found:#010x}, the store recorded "
+                                         f"{expected:#010x}; {REPAIR_REMEDY}")
+            _VERIFIED_CHUNKS[(self.store, index)] = (expected, signature)
+        return values
+
+
+def damaged_chunks(path, grid, checksums):
+    """Indices of the chunks of a store that are missing, cannot be decoded or do not match ``checksums``.
+
+    Chunks this process already verified (and whose files did not change since) are not read again.
+    """
+    reader = VerifiedArray(path, grid, checksums)
+    damaged = []
+    for index in range(grid.count):
+        try:
+            reader.verify(index)
+        except CorruptSignalError:
+            damaged.append(index)
+    return damaged
+
+
+def foreign_entries(path):
+    """Entries of a folder that a signal store does not hold, as paths relative to it (sorted, at most 10).
+
+    A store holds ``zarr.json``, ``data/`` (``zarr.json`` and chunk files
+    ``c/<i>/.../<k>``), ``chunks.jsonl``, the lock, the old format's files and
+    the temporary files of Zarr's (``*.partial``) and sparselt's atomic
+    writers (``.tmp-*``). Anything else was put there by someone else.
+    """
+    path = os.fspath(path)
+    own = {GROUP_FILE, JOURNAL_FILE, LOCK_FILE} | set(LEGACY_FILES)
+    foreign = []
+
+    def temporary(name):
+        return name.endswith(".partial") or name.startswith(".tmp-")
+
+    for name in sorted(os.listdir(path)):
+        full = os.path.join(path, name)
+        if name == ARRAY_NAME and os.path.isdir(full) and not os.path.islink(full):
+            for inner in sorted(os.listdir(full)):
+                inner_path = os.path.join(full, inner)
+                if inner == "c" and os.path.isdir(inner_path) and not os.path.islink(inner_path):
+                    for folder, folders, files in os.walk(inner_path):
+                        relative = os.path.relpath(folder, path)
+                        foreign += [os.path.join(relative, entry) for entry in sorted(folders) if not entry.isdigit()]
+                        foreign += [os.path.join(relative, entry) for entry in sorted(files)
+                                    if not (entry.isdigit() or temporary(entry))]
+                        folders[:] = [entry for entry in folders if entry.isdigit()]
+                elif not (inner == GROUP_FILE and os.path.isfile(inner_path)) and not temporary(inner):
+                    foreign.append(os.path.join(ARRAY_NAME, inner))
+        elif not ((name in own and os.path.isfile(full)) or temporary(name)):
+            foreign.append(name)
+        if len(foreign) >= 10:
+            break
+    return sorted(foreign)[:10]
+
+
+def check_not_foreign(path):
+    """Refuse a folder holding anything a signal store does not (nothing there is removed or replaced)."""
+    foreign = foreign_entries(path) if os.path.isdir(path) else []
+    if foreign:
+        shown = ", ".join(repr(name) for name in foreign[:2]) + (" ..." if len(foreign) > 2 else "")
+        raise ValueError(f"output folder {os.fspath(path)!r} is not a signal: it holds files that sparselt did not "
+                         f"write ({shown}); "
+                         "sparselt removes or replaces nothing there, --overwrite or not: choose another output folder "
+                         "or move those files away")
+
+
+def sibling_path(path, role):
+    """The hidden sibling ``.<name>.sparselt-<role>`` of store ``path``, in the same folder (``role``: 'new' or 'old')."""
+    if role not in SIBLING_ROLES:
+        raise ValueError(f"role must be one of {SIBLING_ROLES}, got {role!r}")
+    parent, name = os.path.split(os.path.abspath(os.fspath(path)))
+    return os.path.join(parent, f".{name}.sparselt-{role}")
+
+
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _exchange(first, second):
+    """Swap two folders in one atomic step (Linux ``renameat2(RENAME_EXCHANGE)``); ``False`` where unsupported."""
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (AttributeError, OSError):
+        return False
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    if renameat2(_AT_FDCWD, os.fsencode(first), _AT_FDCWD, os.fsencode(second), _RENAME_EXCHANGE) == 0:
+        return True
+    code = ctypes.get_errno()
+    if code in (errno.EINVAL, errno.ENOSYS, errno.ENOTSUP, errno.EOPNOTSUPP):
+        return False
+    raise OSError(code, f"cannot exchange {first!r} and {second!r}: {os.strerror(code)}", second)
+
+
+def replace_store(new, path):
+    """Put the complete store ``new`` (a sibling of ``path``) in the place of store ``path``, then delete the old one.
+
+    Where the file system can exchange two folders atomically (Linux), ``path``
+    holds the old store or the new one at every instant. Elsewhere the old
+    store is renamed to its 'old' sibling first; a run killed between the two
+    renames leaves no store under ``path`` until :func:`recover_replacement`
+    (the next ``sample`` run) finishes the swap.
+    """
+    path = os.path.abspath(os.fspath(path))
+    parent = os.path.dirname(path)
+    if _exchange(new, path):
+        _fsync_directory(parent)
+        shutil.rmtree(new)  # now the old store
+        return
+    old = sibling_path(path, "old")
+    if os.path.exists(old):
+        shutil.rmtree(old)
+    os.rename(path, old)
+    os.rename(new, path)
+    _fsync_directory(parent)
+    shutil.rmtree(old)
+
+
+def recover_replacement(path):
+    """Finish a replacement that a run killed between the fallback's two renames left undone.
+
+    With no store under ``path``: the complete new sibling goes into place, or
+    else the old store goes back. A stale 'old' sibling beside a store is
+    removed. Returns what was done (``None``: nothing to do).
+    """
+    path = os.path.abspath(os.fspath(path))
+    old, new = sibling_path(path, "old"), sibling_path(path, "new")
+    if not os.path.isdir(old):
+        return None
+    if os.path.exists(path):
+        if foreign_entries(old):
+            return None
+        shutil.rmtree(old)
+        return "removed the old store left by an interrupted replacement"
+    if store_status(new) == "complete":
+        os.rename(new, path)
+        shutil.rmtree(old)
+        return "finished an interrupted replacement: the new store is in place"
+    os.rename(old, path)
+    return "undid an interrupted replacement: the old store is back in place"
+
+
 def write_chunk(path, grid, index, values):
     """Write chunk ``index`` (``values``: shape ``(cell_count, 3)``), make it durable, return its CRC-32."""
     first, count, region = grid.chunk(index)
@@ -249,10 +639,12 @@ def remove_temporary_files(path):
 
 
 class ChunkJournal:
-    """Append-only record of finished chunks: ``{"chunk": i, "crc32": c, "nonfinite": n}`` per line.
+    """Append-only record of finished chunks: ``{"chunk": i, "crc32": c, "nonfinite": n, "seconds": s}`` per line.
 
     Each line is appended and fsynced after its chunk is durable. A line cut
     short by a kill is ignored when read, so its chunk is sampled again.
+    ``seconds`` is the sampling time the run spent up to this chunk since its
+    previous line (or its start), so the time of a killed run is kept.
     """
 
     def __init__(self, path):
@@ -267,7 +659,9 @@ class ChunkJournal:
             for line in handle:
                 try:
                     record = json.loads(line)
-                    records[int(record["chunk"])] = {"crc32": int(record["crc32"]), "nonfinite": int(record.get("nonfinite", 0))}
+                    records[int(record["chunk"])] = {"crc32": int(record["crc32"]),
+                                                     "nonfinite": int(record.get("nonfinite", 0)),
+                                                     "seconds": float(record.get("seconds", 0.0))}
                 except (ValueError, KeyError, TypeError):
                     continue
         return records
@@ -276,8 +670,8 @@ class ChunkJournal:
         """Append records and fsync."""
         if not records:
             return
-        text = "".join(json.dumps({"chunk": int(r["chunk"]), "crc32": int(r["crc32"]), "nonfinite": int(r["nonfinite"])})
-                       + "\n" for r in records)
+        text = "".join(json.dumps({"chunk": int(r["chunk"]), "crc32": int(r["crc32"]), "nonfinite": int(r["nonfinite"]),
+                                   "seconds": float(r.get("seconds", 0.0))}) + "\n" for r in records)
         with no_space_is_clear(os.path.dirname(self.path), "recording finished chunks"):
             with open(self.path, "a", encoding="utf-8") as handle:
                 handle.write(text)
