@@ -51,9 +51,34 @@ def _methods(text):
     return methods
 
 
+class _SceneParameters(argparse.Action):
+    """``-D name=value``, repeatable: collects the pairs into a tuple sorted by name; a name given twice is an error."""
+
+    def __call__(self, parser, namespace, text, option_string=None):
+        name, separator, value = text.partition("=")
+        name = name.strip()
+        if not separator or not name:
+            parser.error(f"-D takes name=value (Mitsuba's convention for a scene's $name parameters), got {text!r}")
+        pairs = dict(getattr(namespace, self.dest) or ())
+        if name in pairs and pairs[name] != value:
+            parser.error(f"-D {name} is given twice ({pairs[name]!r} and {value!r}); give each parameter once")
+        pairs[name] = value
+        setattr(namespace, self.dest, tuple(sorted(pairs.items())))
+
+
+def _add_scene_options(parser):
+    parser.add_argument("-D", dest="parameters", action=_SceneParameters, default=(), metavar="NAME=VALUE",
+                        help="value of the scene file's $NAME parameter, as Mitsuba's -D (repeatable; "
+                             "part of the scene's identity)")
+
+
 def _add_camera_options(parser):
     parser.add_argument("--aperture", type=float, default=None, help="switch the camera to a thin lens of this radius")
-    parser.add_argument("--focus-distance", type=float, default=None, help="focus distance of the thin lens")
+    parser.add_argument("--focus-distance", type=float, default=None,
+                        help="focus distance of the thin lens (default: a thin-lens scene camera's own; with --aperture "
+                             "on a pinhole camera, the distance at which the camera's central ray hits the scene, "
+                             "or the camera's focus distance, 1000 unless the scene says otherwise, if it hits "
+                             "nothing; the value used is recorded)")
     parser.add_argument("--variant", default=DEFAULT_VARIANT, choices=SUPPORTED_VARIANTS, help="Mitsuba variant (default: %(default)s)")
 
 
@@ -86,6 +111,7 @@ def build_parser():
     sample.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     _add_cluster_options(sample, "sample on")
     _add_camera_options(sample)
+    _add_scene_options(sample)
     sample.set_defaults(handler=_sample)
 
     render = commands.add_parser(
@@ -101,6 +127,7 @@ def build_parser():
     render.add_argument("--out", required=True, help="output folder")
     render.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
     _add_camera_options(render)
+    _add_scene_options(render)
     render.set_defaults(handler=_render)
 
     analyze = commands.add_parser(
@@ -166,6 +193,7 @@ def build_parser():
     compare.add_argument("--overwrite", action="store_true", help="replace a folder holding another comparison")
     compare.add_argument("--no-progress", action="store_true", help="hide progress output")
     _add_camera_options(compare)
+    _add_scene_options(compare)
     compare.set_defaults(handler=_compare)
 
     table = commands.add_parser(
@@ -191,6 +219,7 @@ def build_parser():
                        help="grid fully sampled to measure compressibility (default: image /4, other axes /2)")
     table.add_argument("--out", required=True, help="output folder (rerun to resume)")
     table.add_argument("--no-progress", action="store_true", help="hide progress output")
+    _add_scene_options(table)
     table.set_defaults(handler=_table61)
 
     reproduce = commands.add_parser(
@@ -248,6 +277,7 @@ def _sample(arguments):
         focus_distance=arguments.focus_distance,
         variant=arguments.variant,
         nonfinite=arguments.nonfinite,
+        scene_parameters=arguments.parameters,
     )
     signal = acquire_signal(config, arguments.out, overwrite=arguments.overwrite,
                             progress=not arguments.no_progress, chunk_cells=arguments.chunk_cells,
@@ -267,7 +297,8 @@ def _render(arguments):
         raise ValueError(f"--resolution takes width,height, got {resolution}")
     _, record = render_reference(arguments.scene, arguments.out, spp=arguments.spp, max_depth=arguments.max_depth,
                                  seed=arguments.seed, resolution=resolution, aperture=arguments.aperture,
-                                 focus_distance=arguments.focus_distance, variant=arguments.variant)
+                                 focus_distance=arguments.focus_distance, variant=arguments.variant,
+                                 parameters=arguments.parameters)
     print(f"wrote {arguments.out}: {record['resolution'][0]}x{record['resolution'][1]} at {record['spp']} spp "
           f"in {record['seconds']:.2f} s ({record['samples_per_second'] / 1e6:.2f} M samples/s)")
     return 0
@@ -306,7 +337,7 @@ def _compare(arguments):
         focus_distance=arguments.focus_distance, gamma=arguments.gamma, sparsity=arguments.sparsity,
         thesis_faithful=arguments.thesis_faithful, map_spp=arguments.map_spp, defensive=arguments.defensive,
         guiding_mode=arguments.guiding_mode, caustic_mask=arguments.caustic_mask, alpha=arguments.alpha,
-        sft_snr=arguments.sft_snr, variant=arguments.variant)
+        sft_snr=arguments.sft_snr, variant=arguments.variant, scene_parameters=arguments.parameters)
     result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
     print(result.table())
     print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
@@ -321,7 +352,7 @@ def _table61(arguments):
                            sparsity=arguments.sparsity, snr=arguments.snr, seed=arguments.seed,
                            reference_spp=arguments.reference_spp, max_depth=arguments.max_depth,
                            compressibility_shape=tuple(arguments.compressibility_shape)
-                           if arguments.compressibility_shape else None)
+                           if arguments.compressibility_shape else None, scene_parameters=arguments.parameters)
     run_table61(config, arguments.out, progress=not arguments.no_progress)
     with open(os.path.join(arguments.out, "table_6_1.md"), encoding="utf-8") as handle:
         print(handle.read())

@@ -111,6 +111,8 @@ class ComparisonConfig:
         (default 4) and the SNR in dB the SFT assumes (default 10).
     variant : str
         Mitsuba variant.
+    scene_parameters : tuple of (str, str)
+        Values of a scene file's ``$name`` parameters (``-D name=value``), sorted.
     """
 
     scene: str
@@ -135,6 +137,7 @@ class ComparisonConfig:
     alpha: float | None = None
     sft_snr: float | None = None
     variant: str = "llvm_ad_rgb"
+    scene_parameters: tuple = ()
 
     @property
     def output_resolution(self):
@@ -144,6 +147,7 @@ class ComparisonConfig:
         record = asdict(self)
         for name in ("shape", "methods", "spps", "seeds"):
             record[name] = list(record[name])
+        record["scene_parameters"] = [list(pair) for pair in self.scene_parameters]
         record["resolution"] = list(self.output_resolution)
         return record
 
@@ -218,7 +222,7 @@ def validate_config(config):
     check_wavefront(resolution, max(config.spps))
     if min(resolution) < 11:
         raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
-    spec = get_scene(config.scene).with_lens(config.aperture, config.focus_distance)
+    spec = get_scene(config.scene).with_parameters(config.scene_parameters).with_lens(config.aperture, config.focus_distance)
     if spec.camera is not None:
         _check_layout(config, spec.resolved_camera().thin_lens, spec.hide_emitters)
     return spec

@@ -80,6 +80,7 @@ class Table61Config:
     compressibility_shape: tuple | None = None
     compressibility_spps: tuple = (1, 16, 64)
     variant: str = "llvm_ad_rgb"
+    scene_parameters: tuple = ()  # values of a scene file's $name parameters (-D name=value), sorted
 
     def record(self):
         return {key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()}
@@ -139,7 +140,7 @@ def run_table61(config, out, *, progress=True):
     out = os.fspath(out)
     os.makedirs(os.path.join(out, RECORDS), exist_ok=True)
     os.makedirs(os.path.join(out, IMAGES), exist_ok=True)
-    spec = get_scene(config.scene)
+    spec = get_scene(config.scene).with_parameters(config.scene_parameters)
     resolution = tuple(config.shape[:2])
     scene = mitsuba_backend.MitsubaScene(spec, resolution, variant=config.variant)
     layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens, hide_emitters=spec.hide_emitters)

@@ -93,6 +93,9 @@ class AcquisitionConfig:
     nonfinite : {'error', 'zero'}
         What to do when a sample is NaN or infinite: stop with an error
         (default), or count it, record the count and use 0 in its place.
+    scene_parameters : tuple of (str, str)
+        Values of a scene file's ``$name`` parameters (``-D name=value``),
+        sorted; part of the scene's identity.
     """
 
     scene: str
@@ -105,10 +108,12 @@ class AcquisitionConfig:
     focus_distance: float | None = None
     variant: str = "llvm_ad_rgb"
     nonfinite: str = "error"
+    scene_parameters: tuple = ()
 
     def record(self):
         record = dataclasses.asdict(self)
         record["shape"] = list(self.shape)
+        record["scene_parameters"] = [list(pair) for pair in self.scene_parameters]
         return record
 
 
@@ -182,8 +187,8 @@ _WORKER_SCENES = {}
 
 
 def _scene_key(job):
-    return (repr(job.scene), job.config.aperture, job.config.focus_distance, tuple(job.config.shape[:2]),
-            job.config.variant, job.config.kind, job.config.max_depth)
+    return (repr(job.scene), tuple(job.config.scene_parameters), job.config.aperture, job.config.focus_distance,
+            tuple(job.config.shape[:2]), job.config.variant, job.config.kind, job.config.max_depth)
 
 
 def _worker_scene(job):
@@ -194,7 +199,7 @@ def _worker_scene(job):
     if key not in _WORKER_SCENES:
         config = job.config
         spec = get_scene(job.scene) if isinstance(job.scene, str) else job.scene
-        spec = spec.with_lens(config.aperture, config.focus_distance)
+        spec = spec.with_parameters(config.scene_parameters).with_lens(config.aperture, config.focus_distance)
         scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
         layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens,
                              hide_emitters=spec.hide_emitters)
@@ -328,7 +333,7 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     if not isinstance(spec, SceneSpec):
         raise TypeError(f"scene_spec must be a SceneSpec, got {type(spec).__name__}")
     source = config.scene if scene_spec is None and config.scene in SCENES else spec
-    spec = spec.with_lens(config.aperture, config.focus_distance)
+    spec = spec.with_parameters(config.scene_parameters).with_lens(config.aperture, config.focus_distance)
     # Cheap checks first; the layout of a scene file needs its camera, hence the renderer (checked below).
     if spec.camera is not None:
         layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens,

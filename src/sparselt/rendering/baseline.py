@@ -5,16 +5,20 @@ Every later equal-time comparison renders its baseline with :func:`render_refere
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import io
 import json
 import os
+import sys
 
 import numpy as np
 
 from ..images import write_png
 from ..measurement import progress_bar
-from ..provenance import atomic_save_npy, environment_record, read_json, write_json
+from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
 from ..checks import check_integer
+from .identity import scene_identity
 from .scenes import get_scene
 
 
@@ -40,7 +44,7 @@ def check_finite_image(image, name):
 
 
 def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, aperture=None,
-                     focus_distance=None, variant="llvm_ad_rgb", scene_spec=None):
+                     focus_distance=None, variant="llvm_ad_rgb", scene_spec=None, parameters=()):
     """Render ``scene`` and write ``image.exr``, ``image.png`` and ``render.json`` into ``out``.
 
     Parameters
@@ -58,7 +62,11 @@ def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, a
     resolution : tuple of int, optional
         ``(width, height)``; default the scene's default resolution.
     aperture, focus_distance : float, optional
-        Thin-lens override of the camera.
+        Thin-lens override of the camera. An aperture alone focuses where the
+        camera's central ray hits the scene; ``render.json`` records the
+        focus distance used.
+    parameters : sequence of (str, str), optional
+        Values of the XML file's ``$name`` parameters (``-D name=value``).
 
     Returns
     -------
@@ -72,7 +80,7 @@ def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, a
     check_integer("spp", spp, 1)
     check_integer("max_depth", max_depth, 1)
     check_integer("seed", seed, 0, 2**32 - 1)
-    spec = (scene_spec or get_scene(scene)).with_lens(aperture, focus_distance)
+    spec = (scene_spec or get_scene(scene)).with_parameters(parameters).with_lens(aperture, focus_distance)
     resolution = tuple(resolution or spec.default_resolution)
     for size in resolution:
         check_integer("resolution", size, 1)
@@ -108,15 +116,6 @@ def reference_cache_directory():
     """``$SPARSELT_CACHE/references`` (default ``~/.cache/sparselt/references``)."""
     root = os.environ.get("SPARSELT_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "sparselt")
     return os.path.join(root, "references")
-
-
-def _scene_identity(spec, camera):
-    """What determines the scene's content: the built-in name and camera, or the XML file's bytes."""
-    identity = {"name": spec.name, "camera": repr(camera)}
-    if spec.filename is not None:
-        with open(spec.filename, "rb") as handle:
-            identity["file_sha256"] = hashlib.sha256(handle.read()).hexdigest()
-    return identity
 
 
 def reference_quantity(kind, max_depth):
@@ -161,11 +160,16 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
 
     Notes
     -----
-    The key hashes the scene (built-in name and camera, or the XML file's
-    bytes), resolution, kind, depth, spp, seed and the Mitsuba and Dr.Jit
-    versions: a repeated comparison re-renders nothing. Entries are written
-    atomically (image first, record last); an entry without its record is
-    not used.
+    The key hashes the scene's content identity
+    (:func:`~sparselt.rendering.identity.scene_identity`: an XML file with
+    every file it references and its ``-D`` parameters, or a built-in scene's
+    description and generator code), the resolved camera (lens and focus
+    included), resolution, kind, depth, spp, seed and the Mitsuba and Dr.Jit
+    versions: a repeated comparison re-renders nothing, and an edited scene
+    is rendered again. Entries are written atomically (image first, record
+    last, with the image's SHA-256); an entry without its record is not used,
+    and an unreadable or garbled one is rendered again and replaced, with a
+    note on standard error.
     """
     from . import mitsuba_backend
 
@@ -173,7 +177,8 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     check_integer("seed", seed, 0, 2**16 - 1)
     depth, subtracted = reference_quantity(kind, max_depth)
     key = {
-        "scene": _scene_identity(loaded.spec, loaded.camera),
+        "scene": {"name": loaded.spec.name, "identity": scene_identity(loaded.spec)["digest"],
+                  "camera": dataclasses.asdict(loaded.camera)},
         "resolution": [loaded.width, loaded.height],
         "kind": kind,
         "max_depth": max_depth,
@@ -184,14 +189,19 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
         "pass_spp": REFERENCE_PASS_SPP,
         "versions": mitsuba_backend.versions(),
     }
+    key = json.loads(json.dumps(key))  # as read back from reference.json (tuples become lists)
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
     folder = os.path.join(cache_directory or reference_cache_directory(), digest)
     image_path, record_path = os.path.join(folder, "image.npy"), os.path.join(folder, "reference.json")
     if os.path.isfile(record_path) and os.path.isfile(image_path):
-        record = read_json(record_path)
-        image = np.load(image_path)
-        if record.get("key") == key and image.shape == (loaded.height, loaded.width, 3):
-            return image, dict(record, cached=True, path=image_path)
+        try:
+            record, image = _read_cache_entry(record_path, image_path)
+        except (OSError, ValueError, EOFError) as error:
+            print(f"sparselt: note: the cached reference {folder!r} is unreadable ({error}); rendering it again",
+                  file=sys.stderr)
+        else:
+            if record.get("key") == key and image.shape == (loaded.height, loaded.width, 3):
+                return image, dict(record, cached=True, path=image_path)
 
     passes = [min(REFERENCE_PASS_SPP, spp - start) for start in range(0, spp, REFERENCE_PASS_SPP)]
     total = np.zeros((loaded.height, loaded.width, 3), dtype=np.float64)
@@ -217,8 +227,30 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     if not np.all(np.isfinite(image)):
         raise ValueError(f"the reference render of {loaded.spec.name!r} has NaN or infinite pixels; check the scene")
     os.makedirs(folder, exist_ok=True)
-    atomic_save_npy(image_path, image)
+    if os.path.lexists(record_path):
+        os.remove(record_path)  # the entry is invalid until its new record is written
+    buffer = io.BytesIO()
+    np.save(buffer, image)
+    atomic_write_bytes(image_path, buffer.getvalue())
     mitsuba_backend.write_exr(os.path.join(folder, "image.exr"), image)
-    record = {"key": key, "seconds": seconds, "provenance": environment_record()}
+    record = {"key": key, "image_sha256": hashlib.sha256(buffer.getvalue()).hexdigest(), "seconds": seconds,
+              "provenance": environment_record()}
     write_json(record_path, record)
     return image, dict(record, cached=False, path=image_path)
+
+
+def _read_cache_entry(record_path, image_path):
+    """A reference cache entry's record and image; ValueError if either is garbled (the image is checked
+    against the SHA-256 its record holds)."""
+    record = read_json(record_path)
+    if not isinstance(record, dict):
+        raise ValueError(f"{record_path!r} does not hold a record")
+    with open(image_path, "rb") as handle:
+        data = handle.read()
+    expected = record.get("image_sha256")
+    if expected is not None and hashlib.sha256(data).hexdigest() != expected:
+        raise ValueError(f"{image_path!r} does not match the SHA-256 its record holds")
+    image = np.load(io.BytesIO(data), allow_pickle=False)
+    if image.dtype != np.float32 or image.ndim != 3:
+        raise ValueError(f"{image_path!r} holds a {image.dtype} array of shape {image.shape}, not a float32 image")
+    return record, image

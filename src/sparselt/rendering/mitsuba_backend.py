@@ -21,6 +21,7 @@ chunk and every seed.
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import os
 import re
@@ -192,6 +193,21 @@ def sensor_dictionary(camera, width, height):
     return sensor
 
 
+# Mitsuba's class names of its sensor plugins -> the plugin type an XML file names.
+_SENSOR_TYPES = {"PerspectiveCamera": "perspective", "ThinLensCamera": "thinlens", "IrradianceMeter": "irradiancemeter",
+                 "RadianceMeter": "radiancemeter", "DistantSensor": "distant", "BatchSensor": "batch",
+                 "OrthographicCamera": "orthographic"}
+
+
+def sensor_type(sensor):
+    """The plugin type of a loaded Mitsuba sensor as an XML file names it (``'irradiancemeter'``), or its class name."""
+    try:
+        name = sensor.class_name()
+    except Exception:  # noqa: BLE001  (older Mitsuba: the class name starts the description)
+        name = str(sensor).split("[", 1)[0].strip()
+    return _SENSOR_TYPES.get(name, name)
+
+
 def camera_from_sensor(sensor):
     """Read a loaded Mitsuba perspective or thin-lens sensor back into a :class:`Camera`."""
     parameters = mi.traverse(sensor)
@@ -203,13 +219,9 @@ def camera_from_sensor(sensor):
 
     fov = read("x_fov", None)
     if fov is None:
-        kind = type(sensor).__name__
-        try:
-            kind = sensor.variant_name() if hasattr(sensor, "variant_name") else str(sensor).split("[", 1)[0].strip()
-        except Exception:  # noqa: BLE001  (only for the message)
-            pass
-        raise ValueError(f"the scene's sensor ({kind}) is not a perspective or thin-lens camera; sparselt samples "
-                         "the image plane and lens of those only: change the XML's <sensor type=...> to "
+        kind = sensor_type(sensor)
+        raise ValueError(f"the scene's sensor is of type {kind!r}, not a perspective or thin-lens camera; sparselt "
+                         "samples the image plane and lens of those only: change the XML's <sensor type=...> to "
                          "'perspective' or 'thinlens'")
     aperture = read("aperture_radius", None)
     focus = read("focus_distance", 1000.0)
@@ -224,6 +236,35 @@ def camera_from_sensor(sensor):
         aperture_radius=aperture if aperture else None,
         focus_distance=focus,
     )
+
+
+_UNDEFINED_PARAMETER = re.compile(r"undefined parameter: \$?([A-Za-z0-9_]+)")
+
+
+def _load_scene_file(spec):
+    """Load ``spec``'s XML file with its ``$name`` parameters, its referenced files checked first.
+
+    Raises
+    ------
+    ValueError
+        A referenced file is missing or not of its element's type
+        (:func:`~sparselt.rendering.identity.check_xml_references`), or the
+        file uses a parameter that has no value (the message shows ``-D``).
+    """
+    from .identity import check_xml_references
+
+    check_xml_references(spec.filename, spec.parameters)
+    mi.file_resolver().prepend(os.path.dirname(spec.filename))
+    try:
+        return mi.load_file(spec.filename, **dict(spec.parameters))
+    except RuntimeError as error:
+        match = _UNDEFINED_PARAMETER.search(str(error))
+        if match is None:
+            raise
+        name = match.group(1)
+        where = re.sub(r"^\[[^]]*\]\s*", "", str(error).strip())
+        raise ValueError(f"scene {spec.name!r} uses parameter ${name} without a default; pass it as -D {name}=VALUE "
+                         f"(Mitsuba: {where})") from None
 
 
 class MitsubaScene:
@@ -244,9 +285,7 @@ class MitsubaScene:
         self.spec = spec
         self.width, self.height = (int(v) for v in resolution)
         if spec.filename is not None:
-            folder = os.path.dirname(spec.filename)
-            mi.file_resolver().prepend(folder)
-            self.scene = mi.load_file(spec.filename)
+            self.scene = _load_scene_file(spec)
             sensors = self.scene.sensors()
             if not sensors:
                 raise ValueError(f"scene file {spec.filename!r} has no sensor to take the camera from")
@@ -255,8 +294,29 @@ class MitsubaScene:
             self.scene = mi.load_dict(to_mitsuba_dict(spec.objects))
             base_camera = spec.camera
         self.camera = spec.resolved_camera(base_camera)
+        if spec.focuses_on_the_scene(base_camera):
+            self.camera = self._focus_on_central_hit(self.camera)
         self.sensor = mi.load_dict(sensor_dictionary(self.camera, self.width, self.height))
         self._kernels = {}
+
+    def _focus_on_central_hit(self, camera):
+        """``camera`` focused at the distance where the ray through the image centre hits the scene.
+
+        A ray that hits nothing keeps the camera's focus distance, with a note
+        on standard error.
+        """
+        pinhole = mi.load_dict(sensor_dictionary(dataclasses.replace(camera, aperture_radius=None), 1, 1))
+        ray, _ = pinhole.sample_ray(time=0.0, sample1=0.5, sample2=mi.Point2f(0.5, 0.5), sample3=mi.Point2f(0.5, 0.5))
+        interaction = self.scene.ray_intersect(ray)
+        # Mitsuba's thin lens focuses on a plane at focus_distance along the camera's local z axis.
+        hit = [float(np.ravel(np.asarray(coordinate))[0]) for coordinate in interaction.p]
+        distance = float((to_mitsuba_transform(camera.to_world).inverse() @ mi.ScalarPoint3f(hit))[2])
+        if not bool(np.ravel(np.asarray(interaction.is_valid()))[0]) or not (0 < distance < float("inf")):
+            print(f"sparselt: note: the central ray of the camera of {self.spec.name!r} hits nothing; the thin lens "
+                  f"focuses at the camera's own focus distance {camera.focus_distance:g} (give --focus-distance to "
+                  "choose)", file=sys.stderr)
+            return camera
+        return camera.with_lens(focus_distance=distance)
 
     # -- primary-sample-space evaluation ------------------------------------
 

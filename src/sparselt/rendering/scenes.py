@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -123,6 +124,8 @@ class SceneSpec:
     Exactly one of ``objects`` (a Mitsuba scene dictionary without sensor and
     integrator) and ``filename`` (a Mitsuba XML file) is set. ``camera`` is
     ``None`` for a file until the adapter has read the file's sensor.
+    ``parameters`` are the values of the file's ``$name`` parameters
+    (Mitsuba's ``-D name=value``), sorted ``(name, value)`` string pairs.
     """
 
     name: str
@@ -133,6 +136,50 @@ class SceneSpec:
     default_resolution: tuple = (256, 256)
     lens_overrides: dict = field(default_factory=dict)
     hide_emitters: bool = False
+    parameters: tuple = ()
+
+    def with_parameters(self, parameters):
+        """Return a copy with values for the XML file's ``$name`` parameters (later values win).
+
+        Parameters
+        ----------
+        parameters : sequence of (str, str) or dict
+            ``(name, value)`` pairs, as ``-D name=value`` gives them; numbers
+            are written as text.
+
+        Raises
+        ------
+        ValueError
+            Parameters for a built-in scene (it has none), a name that is not
+            an identifier or that Mitsuba's ``load_file`` reserves.
+        TypeError
+            A value that is not text or a number.
+        """
+        pairs = tuple(parameters.items()) if isinstance(parameters, dict) else tuple(parameters)
+        if not pairs:
+            return self
+        if self.filename is None:
+            names = ", ".join(str(pair[0]) for pair in pairs)
+            raise ValueError(f"scene {self.name!r} is built in and takes no parameters (got {names}); -D name=value "
+                             "sets the $name parameters of a Mitsuba XML scene file")
+        values = dict(self.parameters)
+        for pair in pairs:
+            if len(pair) != 2:
+                raise ValueError(f"a scene parameter is a (name, value) pair, got {pair!r}")
+            name, value = pair
+            if not isinstance(name, str) or not PARAMETER_NAME.fullmatch(name):
+                raise ValueError(f"scene parameter name {name!r} is not a name (letters, digits and _, not starting "
+                                 "with a digit)")
+            if name in RESERVED_PARAMETERS:
+                raise ValueError(f"scene parameter name {name!r} is reserved by Mitsuba's load_file "
+                                 f"({', '.join(RESERVED_PARAMETERS)}); rename the parameter in the XML file")
+            if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+                raise TypeError(f"scene parameter {name!r} must be text or a number, got {type(value).__name__}")
+            values[name] = str(value)
+        spec = replace(self, parameters=tuple(sorted(values.items())))
+        settings = read_xml_settings(self.filename, spec.parameters)
+        return replace(spec, default_resolution=settings["resolution"] or self.default_resolution,
+                       hide_emitters=settings["hide_emitters"])
 
     def with_lens(self, aperture_radius=None, focus_distance=None):
         """Record a thin-lens override; applied to the camera once it is known."""
@@ -147,11 +194,27 @@ class SceneSpec:
         return spec
 
     def resolved_camera(self, camera=None):
-        """The camera with the lens overrides applied."""
+        """The camera with the lens overrides applied.
+
+        A pinhole camera given an aperture without a focus distance keeps its
+        own focus distance here; the renderer adapter then focuses it where
+        the central ray hits the scene (see :meth:`focuses_on_the_scene`).
+        """
         camera = camera or self.camera
         if camera is None:
             raise ValueError(f"scene {self.name!r} has no camera yet (a file scene is read by the adapter)")
         return camera.with_lens(**self.lens_overrides)
+
+    def focuses_on_the_scene(self, camera=None):
+        """Whether the lens overrides make a pinhole ``camera`` a thin lens without saying where it focuses.
+
+        Then the focus distance is the distance at which the camera's central
+        ray hits the scene (the renderer adapter casts it); a thin-lens
+        camera keeps its own focus distance.
+        """
+        camera = camera or self.camera
+        return ("aperture_radius" in self.lens_overrides and "focus_distance" not in self.lens_overrides
+                and camera is not None and not camera.thin_lens)
 
 
 # ---------------------------------------------------------------------------
@@ -159,6 +222,8 @@ class SceneSpec:
 # ---------------------------------------------------------------------------
 
 SCENES: dict[str, Callable[[], SceneSpec]] = {}
+PARAMETER_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+RESERVED_PARAMETERS = ("path", "parallel", "optimize")  # keyword arguments of mi.load_file itself
 
 
 def register(name):
@@ -270,12 +335,13 @@ def scene_names():
     return sorted(SCENES)
 
 
-def read_xml_settings(path):
+def read_xml_settings(path, parameters=()):
     """What sparselt takes from a Mitsuba XML file besides the scene: film size and ``hide_emitters``.
 
     Returns ``{'resolution': (width, height) or None, 'hide_emitters': bool}``,
-    resolving ``$name`` references to the file's ``<default>`` values. Plain
-    XML parsing: the renderer is not needed.
+    resolving ``$name`` references to ``parameters`` (``(name, value)``
+    pairs) or else the file's ``<default>`` values. Plain XML parsing: the
+    renderer is not needed.
     """
     import xml.etree.ElementTree as ElementTree
 
@@ -284,6 +350,7 @@ def read_xml_settings(path):
     except ElementTree.ParseError as error:
         raise ValueError(f"scene file {path!r} is not valid XML: {error}") from None
     defaults = {node.get("name"): node.get("value") for node in root.iter("default")}
+    defaults.update(dict(parameters))
 
     def value(node):
         text = node.get("value", "")
