@@ -2,7 +2,8 @@
 
 ``Signal.image()`` of a ~200 MB signal (default: dof kind, 256x256x16x16 cells
 of the dof-sculptures scene at 1 spp, 201 MB of float32 RGB) three ways,
-interleaved, each repeated (median and spread reported):
+interleaved, each repeated (median and spread reported), then the read alone
+(``np.asarray(Signal.data)``) the same three ways:
 
 * unverified: the image over the raw Zarr array (what ``load_signal`` returned
   before issue 18);
@@ -72,22 +73,35 @@ def main():
             zarr_store._VERIFIED_CHUNKS.clear()
             return verified.image()
 
-        runs = {"unverified (raw Zarr array)": raw.image, "verified, first read (CRC-32 computed)": first_read,
-                "verified, cached (chunks already verified)": verified.image}
-        reference = raw.image()  # warm-up: page cache, imports
-        first_read()
-        times = {name: [] for name in runs}
-        for _ in range(arguments.repeats):
-            for name, run in runs.items():
-                seconds, image = _seconds(run)
-                assert np.array_equal(image, reference), f"{name}: another image"
-                times[name].append(seconds)
-        baseline = statistics.median(times["unverified (raw Zarr array)"])
-        print(f"Signal.image(), median of {arguments.repeats} interleaved runs (min .. max):")
-        for name, values in times.items():
-            median = statistics.median(values)
-            print(f"  {name:44s} {median:7.3f} s  ({min(values):.3f} .. {max(values):.3f})  "
-                  f"ratio to unverified {median / baseline:.3f}")
+        def first_whole_read():
+            zarr_store._VERIFIED_CHUNKS.clear()
+            return np.asarray(verified.data)
+
+        measurements = {
+            "Signal.image()": {"unverified (raw Zarr array)": raw.image,
+                               "verified, first read (CRC-32 computed)": first_read,
+                               "verified, cached (chunks already verified)": verified.image},
+            "np.asarray(Signal.data), the read alone": {
+                "unverified (raw Zarr array)": lambda: np.asarray(raw.data[...]),
+                "verified, first read (CRC-32 computed)": first_whole_read,
+                "verified, cached (chunks already verified)": lambda: np.asarray(verified.data)},
+        }
+        for title, runs in measurements.items():
+            reference = list(runs.values())[0]()  # warm-up: page cache, imports
+            for run in runs.values():
+                run()
+            times = {name: [] for name in runs}
+            for _ in range(arguments.repeats):
+                for name, run in runs.items():
+                    seconds, result = _seconds(run)
+                    assert np.array_equal(result, reference), f"{name}: another result"
+                    times[name].append(seconds)
+            baseline = statistics.median(times["unverified (raw Zarr array)"])
+            print(f"{title}, median of {arguments.repeats} interleaved runs (min .. max):")
+            for name, values in times.items():
+                median = statistics.median(values)
+                print(f"  {name:44s} {median:7.3f} s  ({min(values):.3f} .. {max(values):.3f})  "
+                      f"ratio to unverified {median / baseline:.3f}")
     finally:
         if folder is not None:
             shutil.rmtree(folder, ignore_errors=True)

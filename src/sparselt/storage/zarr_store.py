@@ -421,7 +421,12 @@ class VerifiedArray:
         return pieces
 
     def _copy(self, out, index, source, target):
-        out[target] = self.chunk(index)[source]
+        _, _, region = self.grid.chunk(index)
+        whole = all(part == slice(0, bounds.stop - bounds.start, 1) for part, bounds in zip(source, region))
+        if whole and source[-1] == slice(0, 3, 1):
+            self._read(index, into=out[target])  # decoded straight into the output: no copy
+        else:
+            out[target] = self._read(index)[source]
 
     def verify(self, index):
         """Check chunk ``index`` against its CRC-32 (reading it only if this process has not verified it yet)."""
@@ -431,10 +436,14 @@ class VerifiedArray:
                 return
         except FileNotFoundError:
             pass
-        self.chunk(index)
+        self._read(index)
 
     def chunk(self, index):
         """Chunk ``index`` as stored (shape: its region of the grid + (3,)), checked against its CRC-32."""
+        return self._read(index)
+
+    def _read(self, index, into=None):
+        """Decode chunk ``index`` (into the array view ``into`` when given) and check it; return its values."""
         _, _, region = self.grid.chunk(index)
         chunk_file = os.path.join(self.store, ARRAY_NAME, self.grid.chunk_key(index))
         where = f"chunk {index} of signal {self.store!r}"
@@ -446,7 +455,14 @@ class VerifiedArray:
         try:
             if self._zarr is None:
                 self._zarr = open_data(self.store)
-            values = np.asarray(self._zarr[region + (slice(None),)], dtype=np.float32)
+            selection = region + (slice(None),)
+            if into is None:
+                values = np.asarray(self._zarr[selection], dtype=np.float32)
+            else:
+                from zarr.core.buffer import cpu
+
+                self._zarr.get_basic_selection(selection, out=cpu.NDBuffer.from_numpy_array(into))
+                values = into
         except Exception as error:  # noqa: BLE001  (Zarr and its codecs raise several types for damaged bytes)
             raise CorruptSignalError(f"{where} cannot be decoded ({type(error).__name__}: {error}); "
                                      f"{REPAIR_REMEDY}") from None
