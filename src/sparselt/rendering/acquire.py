@@ -478,7 +478,8 @@ def _damaged_to_journal(path, grid, meta, journal, progress):
     """Turn a complete store with damaged chunks back into an unfinished one whose journal lists the intact chunks.
 
     The store is marked incomplete first, so a run killed while repairing it
-    resumes; the intact chunks keep their recorded checksums and NaN counts.
+    resumes; the intact chunks keep their recorded checksums and NaN counts
+    (``chunk_nonfinite``; a store written before it was recorded counts 0 for them).
     """
     try:
         checksums = zarr_store.recorded_checksums(path, meta, grid.count)
