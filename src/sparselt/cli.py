@@ -306,7 +306,6 @@ def _render(arguments):
 
 def _analyze(arguments):
     from .experiments.sparsity_analysis import DEFAULT_FRACTIONS, analyze_signal
-    from .provenance import check_output_folder
     from .signal import load_signal
 
     signal = load_signal(arguments.signal)
@@ -320,7 +319,6 @@ def _analyze(arguments):
 def _bench_integrate(arguments):
     from .experiments.integration_benchmark import run_integration_benchmark
 
-    check_output_folder(arguments.out, overwrite=arguments.overwrite)
     run_integration_benchmark(arguments.out, sizes=tuple(arguments.sizes), methods=arguments.methods, seed=arguments.seed,
                               repeats=arguments.repeats, overwrite=arguments.overwrite)
     return 0
@@ -378,10 +376,12 @@ def _list_methods(arguments):
 
 
 def _show(arguments):
+    from .provenance import check_output_folder
     from .signal import load_signal
     from .visualize import show_signal
 
     signal = load_signal(arguments.signal)
+    check_output_folder(arguments.out, overwrite=arguments.overwrite)
     if arguments.workers is None and arguments.scheduler is None:
         written = show_signal(signal, arguments.out)
     else:

@@ -49,7 +49,6 @@ def _exponent(value):
     return "-" if value is None else f"N^{value:.2f}"
 
 
-def chapter_4(scale, folder, progress):
 def table_4_1(result, sizes):
     """Thesis Table 4.1 (its complexities, through :mod:`sparselt.thesis_numbers`) beside our fitted exponents."""
     from .integration_report import THESIS_ROWS, thesis_complexity
@@ -65,6 +64,7 @@ def table_4_1(result, sizes):
                  kinds=["thesis", "ours", "thesis", "ours"], rows=rows, label_header="integration method")
 
 
+def chapter_4(scale, folder, progress):
     """Table 4.1 and Figures 4.1/4.2: the four integration methods' time and memory against N."""
     from .integration_benchmark import run_integration_benchmark
 
@@ -230,6 +230,7 @@ def chapter_6(scale, folder, progress):
                            "PT relMSE, same samples"],
                   kinds=["thesis", "ours", "thesis", "ours", "ours", "ours"], rows=table_rows)
     worst = min(row["sft"]["relmse"] / max(row["pt_equal_samples"]["relmse"], 1e-12) for row in rows)
+    thesis_per_cell = [reference["total"] / math.prod(THESIS_SHAPE) for reference in thesis.values()]
     verdict = (f"The SFT reads {min(r['total_samples'] / size for r in rows):.2f}-"
                f"{max(r['total_samples'] / size for r in rows):.2f} N samples (the thesis: {min(thesis_per_cell):.3g}-"
                f"{max(thesis_per_cell):.2g} N) but its image "
@@ -239,7 +240,6 @@ def chapter_6(scale, folder, progress):
                    verdicts=[verdict] + maps.verdicts,
                    figures=[Figure("chapter6/table61/figure_6_1.png", "Figure 6.1: SFT image comparison for the "
                                    "Cornell Box scene (reference, SFT at the lowest alpha, PT at the same samples)")]
-    thesis_per_cell = [reference["total"] / math.prod(THESIS_SHAPE) for reference in thesis.values()]
                    + maps.figures,
                    links=[("table_6_1.md", "chapter6/table61/table_6_1.md"),
                           ("compressibility.md", "chapter6/table61/compressibility.md")] + maps.links)
@@ -252,6 +252,8 @@ def _sft_maps(scale, folder, progress):
     from ..report.comparison import THESIS_GUIDING_TABLES
 
     quick = scale == "quick"
+    thesis = THESIS_GUIDING_TABLES["cornell-caustics"]
+    thesis_size, (thesis_spp, _, _) = next(iter(thesis[2].items()))  # the thesis's smallest image: 1000x1000
     config = ComparisonConfig(
         scene="cornell-caustics", kind="path", shape=(16, 16) + (4,) * 8 if quick else (100, 100) + (4,) * 8,
         resolution=(64, 64) if quick else (thesis_size, thesis_size), methods=("pt", "guided-sft"),
@@ -260,8 +262,6 @@ def _sft_maps(scale, folder, progress):
     out = os.path.join(folder, "maps")
     result = compare(config, out, progress=progress, overwrite=True)
     section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics")
-    thesis = THESIS_GUIDING_TABLES["cornell-caustics"]
-    thesis_size, (thesis_spp, _, _) = next(iter(thesis[2].items()))  # the thesis's smallest image: 1000x1000
     rows = [(f"{size}x{size}", [f"{values[0]}", "-", f"{values[1]}", "-", f"{values[2]}", "-"])
             for size, values in thesis[2].items()]
     width = config.output_resolution[0]
