@@ -83,12 +83,16 @@ def test_bad_input_exits_non_zero_with_a_clear_message(tmp_path, arguments, mess
 
 
 def test_existing_output_needs_overwrite(tmp_path):
+    """The same render again rewrites its folder; another render there needs --overwrite, and says what differs."""
     out = tmp_path / "out"
-    arguments = ["render", "--scene", "cornell-box", "--spp", "2", "--resolution", "8,8", "--out", str(out)]
-    assert run(*arguments).returncode == 0
-    result = run(*arguments)
-    assert result.returncode != 0 and "--overwrite" in result.stderr
-    assert run(*arguments, "--overwrite").returncode == 0
+    arguments = ["render", "--scene", "cornell-box", "--resolution", "8,8", "--out", str(out)]
+    assert run(*arguments, "--spp", "2").returncode == 0
+    assert run(*arguments, "--spp", "2").returncode == 0
+    result = run(*arguments, "--spp", "4")
+    assert result.returncode == 2 and "--overwrite" in result.stderr and "spp: 2 recorded, 4 now" in result.stderr
+    assert json.loads((out / "render.json").read_text())["spp"] == 2
+    assert run(*arguments, "--spp", "4", "--overwrite").returncode == 0
+    assert json.loads((out / "render.json").read_text())["spp"] == 4
 
 
 def test_show_of_an_incomplete_signal_says_how_to_resume(tmp_path):

@@ -126,7 +126,7 @@ def test_resumed_comparison_equals_an_uninterrupted_one(tmp_path, finished, cach
     resumed = tmp_path / "resumed"
     compare(dataclasses.replace(config, spps=(4,), methods=("pt", "cosamp")), resumed, progress=False,
             cache_directory=cache)
-    (resumed / "records" / "cosamp_spp4_seed2.json").unlink()  # as if killed before that cell was recorded
+    (resumed / "cells" / "cosamp_spp4_seed2.json").unlink()  # as if killed before that cell was recorded
     compare(config, resumed, progress=False, cache_directory=cache)
     _, full_rows = read_rows(out)
     _, resumed_rows = read_rows(resumed)
@@ -212,10 +212,10 @@ def test_bad_configuration_is_refused_before_anything_is_written(tmp_path, chang
 
 def test_folder_of_another_comparison_is_refused_and_kept(finished, cache):
     out, _, _ = finished
-    before = sorted(p.name for p in (out / "records").iterdir())
-    with pytest.raises(ValueError, match="holds another comparison"):
+    before = sorted(p.name for p in (out / "cells").iterdir())
+    with pytest.raises(ValueError, match="holds another compare run.*gamma: 0.5 recorded, 0.25 now"):
         compare(tiny(gamma=0.25), out, progress=False, cache_directory=cache)
-    assert sorted(p.name for p in (out / "records").iterdir()) == before
+    assert sorted(p.name for p in (out / "cells").iterdir()) == before
 
 
 def test_cli_reports_errors_with_exit_code(tmp_path, capsys):

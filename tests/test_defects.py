@@ -131,7 +131,11 @@ def test_show_does_not_overwrite_without_permission(tmp_path):
     assert (pictures / "image.png").read_bytes() == b"precious"
     (tmp_path / "file").write_text("x")
     assert main(["show", str(signal), "--out", str(tmp_path / "file")]) == 2
-    assert main(["show", str(signal), "--out", str(pictures), "--overwrite"]) == 0
+    # sparselt never deletes what it did not write, --overwrite or not (issue 18, case 3)
+    assert main(["show", str(signal), "--out", str(pictures), "--overwrite"]) == 2
+    assert (pictures / "image.png").read_bytes() == b"precious"
+    assert main(["show", str(signal), "--out", str(tmp_path / "fresh")]) == 0
+    assert main(["show", str(signal), "--out", str(tmp_path / "fresh")]) == 0  # the same pictures: rewritten
 
 
 def test_empty_or_corrupt_data_file_is_a_clear_error(tmp_path):

@@ -98,7 +98,7 @@ def test_guided_methods_in_a_comparison(tmp_path):
     for method in config.methods[1:]:
         assert rows[method, 1]["path_samples"] == 32 * 32 * 8 + 16 * 16 * 8  # guided samples + the pilot
         assert abs(np.mean([rows[method, s]["luminance_ratio"] for s in (1, 2)]) - 1) < 0.15
-    record = json.loads(next((tmp_path / "guided" / "records").glob("guided-cosamp_*.json")).read_text())
+    record = json.loads(next((tmp_path / "guided" / "cells").glob("guided-cosamp_*.json")).read_text())
     assert 0.1 <= record["details"]["mean_defensive"] <= 1.0
     assert (tmp_path / "guided" / "table_6.md").exists()
 

@@ -172,9 +172,9 @@ def test_table61_command_writes_the_table_beside_the_thesis(tmp_path):
     rows = (out / "table_6_1.csv").read_text().strip().splitlines()
     assert len(rows) == 3 and rows[1].startswith("4.0,1,")  # alpha 4 at 1 and 2 samples per point
     assert (out / "figure_6_1.png").exists() and (out / "compressibility.md").exists()
-    stamp = (out / "records" / "alpha4_spp1.json").stat().st_mtime_ns
+    stamp = (out / "cells" / "alpha4_spp1.json").stat().st_mtime_ns
     assert main(arguments) == 0  # resumes: nothing recomputed
-    assert (out / "records" / "alpha4_spp1.json").stat().st_mtime_ns == stamp
+    assert (out / "cells" / "alpha4_spp1.json").stat().st_mtime_ns == stamp
 
 
 @pytest.mark.parametrize("dense", [True, False], ids=["dense-slot-table", "sorted-indices"])

@@ -69,9 +69,9 @@ def test_reproduce_chapter_4_quick_page_loads_in_a_browser(tmp_path, chromium):
         assert not target.startswith(("http:", "https:", "/")), target
         assert (out / target).exists(), target
     assert "Table 4.1" in dom and "O(P \\log(P))" in dom and "faster than sum integration" in dom
-    stamp = (out / "chapter4" / "section.json").stat().st_mtime_ns
+    stamp = (out / "cells" / "chapter4.json").stat().st_mtime_ns
     assert main(["reproduce", "--chapter", "4", "--out", str(out), "--no-progress"]) == 0  # resumes
-    assert (out / "chapter4" / "section.json").stat().st_mtime_ns == stamp
+    assert (out / "cells" / "chapter4.json").stat().st_mtime_ns == stamp
 
 
 def test_a_broken_image_is_reported_by_the_page(tmp_path, chromium):

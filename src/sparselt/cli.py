@@ -125,7 +125,8 @@ def build_parser():
     render.add_argument("--seed", type=int, default=0, help="sampler seed (default: %(default)s)")
     render.add_argument("--resolution", type=_shape, default=None, help="width,height (default: the scene's)")
     render.add_argument("--out", required=True, help="output folder")
-    render.add_argument("--overwrite", action="store_true", help="replace an existing output folder's files")
+    render.add_argument("--overwrite", action="store_true",
+                        help="replace a folder holding another render (only the files sparselt wrote there)")
     _add_camera_options(render)
     _add_scene_options(render)
     render.set_defaults(handler=_render)
@@ -190,7 +191,8 @@ def build_parser():
     compare.add_argument("--caustic-mask", action="store_true",
                          help="also report relMSE inside a caustic mask (bright spots on diffuse surfaces)")
     compare.add_argument("--out", required=True, help="output folder (rerun to resume)")
-    compare.add_argument("--overwrite", action="store_true", help="replace a folder holding another comparison")
+    compare.add_argument("--overwrite", action="store_true",
+                         help="replace a folder holding another comparison (only the files sparselt wrote there)")
     compare.add_argument("--no-progress", action="store_true", help="hide progress output")
     _add_camera_options(compare)
     _add_scene_options(compare)
@@ -229,6 +231,8 @@ def build_parser():
     reproduce.add_argument("--chapter", default="all", help="4, 5, 6, 7, 8 or all (default: all reproduced so far)")
     reproduce.add_argument("--scale", default="quick", help="quick (minutes) or thesis (the thesis's sizes; long)")
     reproduce.add_argument("--out", required=True, help="output folder (rerun to resume)")
+    reproduce.add_argument("--overwrite", action="store_true",
+                           help="replace a folder holding the other scale (only the files sparselt wrote there)")
     reproduce.add_argument("--no-progress", action="store_true", help="hide progress output")
     reproduce.set_defaults(handler=_reproduce)
 
@@ -239,7 +243,8 @@ def build_parser():
     show = commands.add_parser("show", help="pictures of a signal", description="Write the integrated image and 2-D slices of a signal as PNGs.")
     show.add_argument("signal", help="signal folder")
     show.add_argument("--out", required=True, help="output folder")
-    show.add_argument("--overwrite", action="store_true", help="replace files in an existing output folder")
+    show.add_argument("--overwrite", action="store_true",
+                      help="replace a folder holding pictures of another signal (only the files sparselt wrote there)")
     _add_cluster_options(show, "compute the integrated image on")
     show.set_defaults(handler=_show)
     return parser
@@ -288,17 +293,15 @@ def _sample(arguments):
 
 
 def _render(arguments):
-    from .provenance import check_output_folder
     from .rendering.baseline import render_reference
 
-    check_output_folder(arguments.out, overwrite=arguments.overwrite)
     resolution = arguments.resolution
     if resolution is not None and len(resolution) != 2:
         raise ValueError(f"--resolution takes width,height, got {resolution}")
     _, record = render_reference(arguments.scene, arguments.out, spp=arguments.spp, max_depth=arguments.max_depth,
                                  seed=arguments.seed, resolution=resolution, aperture=arguments.aperture,
                                  focus_distance=arguments.focus_distance, variant=arguments.variant,
-                                 parameters=arguments.parameters)
+                                 overwrite=arguments.overwrite, parameters=arguments.parameters)
     print(f"wrote {arguments.out}: {record['resolution'][0]}x{record['resolution'][1]} at {record['spp']} spp "
           f"in {record['seconds']:.2f} s ({record['samples_per_second'] / 1e6:.2f} M samples/s)")
     return 0
@@ -361,7 +364,8 @@ def _table61(arguments):
 def _reproduce(arguments):
     from .experiments.reproduce import reproduce
 
-    path = reproduce(arguments.chapter, arguments.scale, arguments.out, progress=not arguments.no_progress)
+    path = reproduce(arguments.chapter, arguments.scale, arguments.out, progress=not arguments.no_progress,
+                     overwrite=arguments.overwrite)
     print(f"open {os.path.abspath(path)}")
     return 0
 
@@ -376,19 +380,17 @@ def _list_methods(arguments):
 
 
 def _show(arguments):
-    from .provenance import check_output_folder
     from .signal import load_signal
     from .visualize import show_signal
 
     signal = load_signal(arguments.signal)
-    check_output_folder(arguments.out, overwrite=arguments.overwrite)
     if arguments.workers is None and arguments.scheduler is None:
-        written = show_signal(signal, arguments.out)
+        written = show_signal(signal, arguments.out, overwrite=arguments.overwrite)
     else:
         from .distributed import dask_client
 
         with dask_client(workers=arguments.workers, scheduler=arguments.scheduler) as client:
-            written = show_signal(signal, arguments.out, client=client)
+            written = show_signal(signal, arguments.out, client=client, overwrite=arguments.overwrite)
     for path in written:
         print(f"wrote {path}")
     return 0
@@ -410,15 +412,23 @@ def _describe(error):
 
 
 def main(argv=None):
+    from .provenance import record_command
+
     parser = build_parser()
     arguments = parser.parse_args(argv)
+    record_command(["sparselt"] + list(sys.argv[1:] if argv is None else argv))
     try:
-        return arguments.handler(arguments)
-    except (ValueError, TypeError, RuntimeError, OSError) as error:
-        print(f"sparselt {arguments.command}: error: {_describe(error)}", file=sys.stderr)
-        return 2
+        try:
+            return arguments.handler(arguments)
+        except (ValueError, TypeError, RuntimeError, OSError) as error:
+            # Ctrl-C during a Mitsuba render cancels the render (a RuntimeError) and then re-raises the signal:
+            # Python's pending KeyboardInterrupt fires here, on the first bytecode, before the error is reported.
+            message = _describe(error)
+            print(f"sparselt {arguments.command}: error: {message}", file=sys.stderr)
+            return 2
     except KeyboardInterrupt:
-        print(f"sparselt {arguments.command}: interrupted; finished chunks are kept, rerun to resume", file=sys.stderr)
+        done = "finished chunks are kept" if arguments.command == "sample" else "finished work is kept"
+        print(f"sparselt {arguments.command}: interrupted; {done}: rerun the same command to resume", file=sys.stderr)
         return 130
 
 

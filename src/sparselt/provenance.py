@@ -49,13 +49,22 @@ def git_revision():
     return {"commit": commit, "dirty": bool(status)}
 
 
+_COMMAND = []
+
+
+def record_command(arguments):
+    """Set the command line :func:`environment_record` reports (the CLI's own arguments, also when
+    ``sparselt.cli.main`` is called from Python); by default it is ``sys.argv``."""
+    _COMMAND[:] = [str(argument) for argument in arguments]
+
+
 def environment_record():
     """Versions, git revision, platform, command line and time: attach to every output."""
     return {
         "versions": package_versions(),
         "git": git_revision(),
         "platform": platform.platform(),
-        "command": sys.argv,
+        "command": list(_COMMAND) or sys.argv,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
 
@@ -147,37 +156,3 @@ def _json_default(value):
     if hasattr(value, "__dict__"):
         return vars(value)
     raise TypeError(f"cannot store {type(value).__name__} in JSON")
-
-
-def check_output_folder(path, *, overwrite, marker=None):
-    """Make sure ``path`` can take a new output folder.
-
-    Parameters
-    ----------
-    path : str
-        Output folder.
-    overwrite : bool
-        Allow replacing an existing folder's files.
-    marker : str, optional
-        A file whose presence says the folder holds output of this kind.
-
-    Raises
-    ------
-    ValueError
-        ``path`` is a file, or exists and is not empty without ``overwrite``.
-    PermissionError
-        The folder (or its parent) is not writable.
-    """
-    path = os.fspath(path)
-    if os.path.exists(path) and not os.path.isdir(path):
-        raise ValueError(f"output path {path!r} is an existing file, not a folder")
-    if os.path.isdir(path) and os.listdir(path) and not overwrite:
-        raise ValueError(f"output folder {path!r} already exists and is not empty; pass --overwrite to replace it")
-    parent = os.path.dirname(os.path.abspath(path))
-    probe = path if os.path.isdir(path) else parent
-    while not os.path.exists(probe):
-        probe = os.path.dirname(probe)
-    if not os.path.isdir(probe):
-        raise ValueError(f"output folder {path!r} cannot be created: {probe!r} is a file, not a folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise PermissionError(f"output folder {path!r} is not writable (no write permission on {probe!r})")

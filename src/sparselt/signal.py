@@ -193,14 +193,14 @@ def load_signal(path, *, mmap=True):
         raise ValueError(f"{path!r} holds a signal in the old .npy folder format, which this version no longer reads; "
                          "resample it with 'sparselt sample ... --overwrite'")
     meta = read_attributes(path)
-    _check_attributes(path, meta)
-    if status != "complete":
+    if status != "complete":  # first: what to do about an unfinished run matters more than its metadata
         finished = len(ChunkJournal(path).read())
         total = meta.get("chunk_count", "?")
         raise IncompleteSignalError(
             f"signal {path!r} is incomplete ({finished}/{total} chunks finished); "
             "rerun the same 'sparselt sample' command to resume it"
         )
+    _check_attributes(path, meta)
     expected = tuple(meta["shape"]) + (3,)
     try:
         array = open_data(path)

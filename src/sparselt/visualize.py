@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
-from .images import reference_exposure, save_figure, srgb_tonemap, write_png
+from .checks import check_integer
+from .images import reference_exposure, srgb_tonemap
 
 
-def show_signal(signal, out, *, grid=4, client=None):
-    """Write pictures of ``signal`` into folder ``out``.
+def show_signal(signal, out, *, grid=4, client=None, overwrite=False):
+    """Write pictures of ``signal`` into folder ``out`` (an :class:`~sparselt.storage.folder.ExperimentFolder`
+    whose identity is the signal's content and ``grid``: a rerun rewrites it, another signal is refused
+    unless ``overwrite``).
 
     Files
     -----
@@ -34,17 +35,27 @@ def show_signal(signal, out, *, grid=4, client=None):
     list of str
         The files written.
     """
+    from .storage.folder import ExperimentFolder, signal_identity
+
+    check_integer("grid", grid, 1)
+    folder = ExperimentFolder(out, kind="show", identity=dict(signal_identity(signal), grid=grid), overwrite=overwrite)
+    folder.inspect()
+    with folder.open():
+        written = _write_pictures(signal, folder, grid, client)
+        folder.complete()
+    return written
+
+
+def _write_pictures(signal, folder, grid, client):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as pyplot
 
-    os.makedirs(out, exist_ok=True)
     written = []
     image = signal.image(client=client)
     exposure = reference_exposure(image)
-    write_png(os.path.join(out, "image.png"), image, exposure=exposure)
-    written.append(os.path.join(out, "image.png"))
+    written.append(folder.write_png("image.png", image, exposure=exposure))
 
     axes = signal.axes
     extra = list(range(2, len(axes)))
@@ -64,9 +75,7 @@ def show_signal(signal, out, *, grid=4, client=None):
         panel.set_title(f"{axes[first]} = {value}/{signal.shape[first]}", fontsize=9)
         panel.axis("off")
     figure.suptitle(f"{signal.kind}: image-plane slices (other axes at their middle cell)", fontsize=10)
-    path = os.path.join(out, "slices_x_y.png")
-    save_figure(figure, path, dpi=100, bbox_inches="tight")
-    written.append(path)
+    written.append(folder.write_figure("slices_x_y.png", figure, dpi=100, bbox_inches="tight"))
 
     # Per-pixel slices over consecutive pairs of non-image axes.
     width, height = signal.shape[0], signal.shape[1]
@@ -96,7 +105,5 @@ def show_signal(signal, out, *, grid=4, client=None):
                     panel.set_ylabel(axes[b], fontsize=8)
         figure.colorbar(shown, ax=panels, shrink=0.6, label="luminance")
         figure.suptitle(f"{signal.kind}: luminance over ({axes[a]}, {axes[b]}) per pixel", fontsize=10)
-        path = os.path.join(out, f"slices_{axes[a]}_{axes[b]}.png")
-        save_figure(figure, path, dpi=100, bbox_inches="tight")
-        written.append(path)
+        written.append(folder.write_figure(f"slices_{axes[a]}_{axes[b]}.png", figure, dpi=100, bbox_inches="tight"))
     return written

@@ -6,30 +6,35 @@ requested method of the registry (:mod:`sparselt.methods`) at every budget and
 seed on one scene, in one process, kernels warmed first, and measures each
 image against a path-traced reference.
 
-Output folder::
+Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
 
-    compare.json            resolved configuration, seeds, versions, git revision,
-                            warm-up (compile) times, harness overhead
+    sparselt-folder.json    the folder's manifest: identity (configuration with defaults
+                            explicit, scene content digest), files written, status, and
+                            every command that contributed (versions, git revision)
+    compare.json            resolved configuration (the union of methods, budgets and
+                            seeds over reruns), warm-up (compile) times, harness overhead
     results.csv             one row per (method, spp, seed): RESULT_COLUMNS first
-    records/                one JSON record per finished (method, spp, seed):
+    cells/                  one JSON record per finished (method, spp, seed):
                             what a rerun resumes from
-    images/                 EXR + PNG per method, spp and seed, and the reference
+    images/                 EXR + PNG + npy per method, spp and seed, and the reference
     quality_vs_time.png     SSIM and relMSE against seconds (Figures 8.1/8.3)
     image_grid.png          every method at matched time (Figures 8.2/8.4, 8.7/8.9)
     crop_grid.png           detail crops where the methods differ most, at matched time
-    table_8.md              time per phase (Tables 8.1/8.2), thesis numbers beside
-    equal_time.md           relMSE and SSIM of each method over PT's at the same time
+    table_8.md, .csv        time per phase (Tables 8.1/8.2), thesis numbers beside
+    equal_time.md, .csv     relMSE and SSIM of each method over PT's at the same time
     table_6.md              guided methods: Tables 6.2/6.3 layout (image size, spp, guided and PT time)
+    index.html              the report page
 
-Every file is written atomically; a rerun with the same comparison skips the
-finished cells, and may add methods, budgets or seeds.
+Every file is written atomically and listed in the manifest; a rerun with the
+same comparison skips the finished cells, and may add methods, budgets or
+seeds. A folder holding another comparison (other settings, or the scene's
+files changed) is refused, naming what differs, unless ``overwrite``; a folder
+holding files sparselt did not write is always refused.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import shutil
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -43,16 +48,18 @@ from ..analysis.metrics import (
     reference_exposure,
     relative_mean_squared_error,
 )
-from ..checks import check_integer
-from ..images import luminance, write_png
+from ..checks import check_integer, check_positive_finite
+from ..images import luminance
 from ..methods import TIME_PHASES, Budget, ComparisonContext, get_method
-from ..provenance import atomic_save_npy, environment_record, read_json, write_json
+from ..provenance import environment_record
 from ..rendering import mitsuba_backend
 from ..rendering.baseline import check_wavefront
+from ..rendering.identity import scene_identity
 from ..rendering.layout import path_layout
 from ..rendering.scenes import SceneSpec, get_scene
-from ..report.comparison import write_comparison_page
-from . import compare_report
+from ..report.comparison import results_table, write_comparison_outputs
+from ..storage.folder import ExperimentFolder
+from .equal_time import add_equal_time_columns
 
 KINDS = ("dof", "indirect", "path", "path-indirect")
 RELMSE_EPSILON = 0.01
@@ -60,10 +67,13 @@ RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", 
                   "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
 EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time")
 CONFIG_FILE = "compare.json"
-RECORDS = "records"
 IMAGES = "images"
 # What makes two comparisons the same: everything but the lists a rerun may extend.
 EXTENSIBLE = ("methods", "spps", "seeds")
+#: Bounds checked before any work: a reference beyond them would run for days (2-core machine, ~5 M samples/s).
+MAXIMUM_REFERENCE_SPP = 2**24
+MAXIMUM_REFERENCE_SAMPLES = 2**40
+REFERENCE_SAMPLES_PER_SECOND = 5e6
 
 
 @dataclass(frozen=True)
@@ -152,13 +162,30 @@ class ComparisonConfig:
         return record
 
     def identity(self):
-        """The record without the lists a rerun may extend."""
-        return {key: value for key, value in self.record().items() if key not in EXTENSIBLE}
+        """The record without the lists a rerun may extend, every default made explicit.
+
+        Stating a default (``--gamma 0.25``) is the same comparison as leaving
+        it out. ``sparsity`` stays ``None`` when not given: its default
+        differs per method (N/200 for CoSaMP, N/10^4 for the SFT).
+        """
+        record = {key: value for key, value in self.record().items() if key not in EXTENSIBLE}
+        record.update(self.method_options())
+        return record
 
     def method_options(self):
-        return {"gamma": self.gamma, "sparsity": self.sparsity, "thesis_faithful": self.thesis_faithful,
-                "map_spp": self.map_spp, "defensive": self.defensive, "guiding_mode": self.guiding_mode,
-                "alpha": self.alpha, "sft_snr": self.sft_snr}
+        """The methods' options with their defaults resolved (see :meth:`identity`)."""
+        from ..methods.cosamp_reconstruction import DEFAULT_GAMMA
+        from ..methods.guided import DEFAULT_DEFENSIVE, DEFAULT_MAP_SPP
+        from ..methods.sft_reconstruction import DEFAULT_ALPHA, DEFAULT_SNR
+
+        def given(value, default):
+            return default if value is None else value
+
+        return {"gamma": float(given(self.gamma, DEFAULT_GAMMA)), "sparsity": self.sparsity,
+                "thesis_faithful": bool(self.thesis_faithful), "map_spp": int(given(self.map_spp, DEFAULT_MAP_SPP)),
+                "defensive": float(given(self.defensive, DEFAULT_DEFENSIVE)),
+                "guiding_mode": given(self.guiding_mode, "per-pixel"), "alpha": float(given(self.alpha, DEFAULT_ALPHA)),
+                "sft_snr": float(given(self.sft_snr, DEFAULT_SNR))}
 
 
 @dataclass
@@ -171,7 +198,7 @@ class ComparisonResult:
     overhead_fraction: float = 0.0
 
     def table(self):
-        return compare_report.results_table(self.rows)
+        return results_table(self.rows)
 
 
 def validate_config(config):
@@ -195,7 +222,6 @@ def validate_config(config):
         raise ValueError("give at least one seed")
     for seed in config.seeds:
         check_integer("seed", seed, 0, 2**32 - 2)
-    check_integer("reference spp", config.reference_spp, 1)
     check_integer("reference seed", config.reference_seed, 0, 2**16 - 1)
     check_integer("max_depth", config.max_depth, 1)
     if len(config.shape) < 2:
@@ -215,17 +241,40 @@ def validate_config(config):
                              f"{tuple(config.shape[:2])}; got {resolution}")
     if config.map_spp is not None:
         check_integer("map spp", config.map_spp, 1, 2**16 - 1)
+    if config.sparsity is not None:
+        check_integer("sparsity (K)", config.sparsity, 1, math.prod(config.shape) // 2)
+    if config.gamma is not None:
+        check_positive_finite(config.gamma, "gamma")
+    if config.alpha is not None:
+        check_positive_finite(config.alpha, "alpha")
+        if config.alpha < 1:
+            raise ValueError(f"alpha must be at least 1 (B = alpha K buckets), got {config.alpha!r}")
+    if config.sft_snr is not None and not (isinstance(config.sft_snr, (int, float)) and math.isfinite(config.sft_snr)):
+        raise ValueError(f"sft snr must be a finite number of dB, got {config.sft_snr!r}")
     if config.defensive is not None and not (isinstance(config.defensive, (int, float)) and 0 <= config.defensive <= 1):
         raise ValueError(f"defensive must be in [0, 1], got {config.defensive!r}")
     if config.guiding_mode not in (None, "per-pixel", "global"):
         raise ValueError(f"guiding mode must be 'per-pixel' or 'global', got {config.guiding_mode!r}")
     check_wavefront(resolution, max(config.spps))
+    check_reference_spp(resolution, config.reference_spp)
     if min(resolution) < 11:
         raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
     spec = get_scene(config.scene).with_parameters(config.scene_parameters).with_lens(config.aperture, config.focus_distance)
     if spec.camera is not None:
         _check_layout(config, spec.resolved_camera().thin_lens, spec.hide_emitters)
     return spec
+
+
+def check_reference_spp(resolution, spp):
+    """Refuse a reference that would run for days: an estimate and a bound, before any work."""
+    check_integer("reference spp", spp, 1, MAXIMUM_REFERENCE_SPP)
+    samples = resolution[0] * resolution[1] * spp
+    if samples > MAXIMUM_REFERENCE_SAMPLES:
+        raise ValueError(f"a reference of {resolution[0]}x{resolution[1]} pixels at {spp} spp is {samples:.3g} path "
+                         f"samples, about {samples / REFERENCE_SAMPLES_PER_SECOND / 3600:.3g} hours at "
+                         f"~{REFERENCE_SAMPLES_PER_SECOND / 1e6:.0f} M samples/s; at most "
+                         f"{MAXIMUM_REFERENCE_SAMPLES:.3g} samples (reference spp <= "
+                         f"{MAXIMUM_REFERENCE_SAMPLES // (resolution[0] * resolution[1])} at this resolution)")
 
 
 def _check_layout(config, thin_lens, hide_emitters=False):
@@ -236,57 +285,8 @@ def _check_layout(config, thin_lens, hide_emitters=False):
     return layout
 
 
-def _prepare_folder(out, config, overwrite):
-    """Create ``out`` or check that it holds this comparison; return the previous record or None."""
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise ValueError(f"output path {out!r} is an existing file, not a folder")
-    config_path = os.path.join(out, CONFIG_FILE)
-    if os.path.isfile(config_path):
-        previous = read_json(config_path)
-        if _same_comparison(previous.get("config", {}).get("identity") or {}, config):
-            return previous
-        if not overwrite:
-            raise ValueError(f"{out!r} holds another comparison (scene {previous.get('config', {}).get('scene')!r}, "
-                             "different settings); choose another --out or pass --overwrite to replace it")
-        _clear(out)
-    elif os.path.isdir(out) and os.listdir(out):
-        if not overwrite:
-            raise ValueError(f"output folder {out!r} exists, is not empty and is not a comparison; "
-                             "choose another --out or pass --overwrite")
-        _clear(out)
-    os.makedirs(os.path.join(out, RECORDS), exist_ok=True)
-    os.makedirs(os.path.join(out, IMAGES), exist_ok=True)
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise PermissionError(f"output folder {out!r} is not writable")
-    return None
-
-
-def _same_comparison(recorded, config):
-    """Whether a recorded identity is ``config``'s; settings added since it was written count as their defaults."""
-    defaults = ComparisonConfig(scene=config.scene, kind=config.kind, shape=config.shape).identity()
-    current = config.identity()
-    return all(recorded.get(key, defaults.get(key)) == value for key, value in current.items())
-
-
-def _clear(out):
-    for name in os.listdir(out):
-        path = os.path.join(out, name)
-        if os.path.isdir(path) and not os.path.islink(path):
-            shutil.rmtree(path)
-        else:
-            os.remove(path)
-
-
 def cell_name(method, spp, seed):
     return f"{method}_spp{spp}_seed{seed}"
-
-
-def _record_path(out, method, spp, seed):
-    return os.path.join(out, RECORDS, cell_name(method, spp, seed) + ".json")
-
-
-def _image_path(out, method, spp, seed):
-    return os.path.join(out, IMAGES, cell_name(method, spp, seed) + ".npy")
 
 
 SPECULAR_BSDFS = ("conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric", "plastic",
@@ -357,7 +357,10 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         (finished cells are kept); one holding another comparison is refused
         unless ``overwrite``.
     overwrite : bool, optional
-        Replace a folder that holds something else.
+        Replace a folder that holds another comparison: only its listed files
+        are removed, and only after the configuration is validated and the
+        scene has loaded. A folder with files sparselt did not write is
+        refused even so.
     progress : bool, optional
         Progress bars and one line per finished cell on standard error.
     cache_directory : str, optional
@@ -373,15 +376,18 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         Unknown method (the message lists the registered ones), a method that
         does not support the kind, spp <= 0, a shape that does not match the
         kind, a resolution that is not a multiple of the shape's image axes
-        where a method needs it, an output folder holding another comparison.
+        where a method needs it, a reference beyond :data:`MAXIMUM_REFERENCE_SAMPLES`,
+        an output folder holding another comparison or foreign files.
         Nothing already computed is touched before these checks pass.
+    StoreLockedError
+        Another run is writing the folder (the message names it).
     """
     from ..rendering.baseline import cached_reference
 
     started = time.perf_counter()
     spec = validate_config(config)
-    out = os.fspath(out)
-    previous = _prepare_folder(out, config, overwrite)
+    folder = comparison_folder(config, spec, out, overwrite=overwrite)
+    folder.inspect()  # refusals before the scene loads; nothing is removed yet
 
     load_start = time.perf_counter()
     loaded = mitsuba_backend.MitsubaScene(spec, config.output_resolution, variant=config.variant)
@@ -392,82 +398,86 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
                                 options=config.method_options())
     methods = [get_method(name) for name in config.methods]  # their kinds were checked by validate_config
 
-    record = previous or {}
-    resolved = dict(config.record(), identity=config.identity())
-    for name in EXTENSIBLE:  # a rerun may add methods, budgets or seeds: record the union
-        earlier = record.get("config", {}).get(name, [])
-        resolved[name] = list(dict.fromkeys(list(earlier) + resolved[name]))
-    record["config"] = resolved
-    record["provenance"] = environment_record()
-    record["method_descriptions"] = {method.name: method.description for method in methods}
-    record.setdefault("warm_up_seconds", {})
-    record["relmse_epsilon"] = RELMSE_EPSILON
-    record["hide_emitters"] = spec.hide_emitters
-    record["status"] = "running"
-    write_json(os.path.join(out, CONFIG_FILE), record)
+    with folder.open():
+        record = folder.read_json(CONFIG_FILE) if folder.exists(CONFIG_FILE) else {}
+        resolved = dict(config.record(), identity=config.identity())
+        for name in EXTENSIBLE:  # a rerun may add methods, budgets or seeds: record the union
+            earlier = record.get("config", {}).get(name, [])
+            resolved[name] = list(dict.fromkeys(list(earlier) + resolved[name]))
+        record["config"] = resolved
+        record["provenance"] = environment_record()  # this command's; the manifest keeps every command's
+        record["method_descriptions"] = dict(record.get("method_descriptions", {}),
+                                             **{method.name: method.description for method in methods})
+        record.setdefault("warm_up_seconds", {})
+        record["relmse_epsilon"] = RELMSE_EPSILON
+        record["hide_emitters"] = spec.hide_emitters
+        record["status"] = "running"
+        folder.write_json(CONFIG_FILE, record)
 
-    reference_start = time.perf_counter()
-    reference, reference_record = cached_reference(loaded, config.kind, spp=config.reference_spp,
-                                                   max_depth=config.max_depth, seed=config.reference_seed,
-                                                   progress=progress, cache_directory=cache_directory)
-    reference_seconds = time.perf_counter() - reference_start
-    exposure = reference_exposure(reference)
-    write_images(out, "reference", reference, exposure)
-    mask = None
-    if config.caustic_mask:
-        mask = caustic_mask(loaded, reference, spp=min(config.reference_spp, 1024), max_depth=config.max_depth,
-                            seed=config.reference_seed)
-        write_png(os.path.join(out, IMAGES, "caustic_mask.png"), np.repeat(mask[..., None], 3, axis=2).astype(np.float32))
-        record["caustic_mask_pixels"] = int(mask.sum())
-    record["reference"] = {key: reference_record[key] for key in ("key", "seconds", "cached", "path")}
+        reference_start = time.perf_counter()
+        reference, reference_record = cached_reference(loaded, config.kind, spp=config.reference_spp,
+                                                       max_depth=config.max_depth, seed=config.reference_seed,
+                                                       progress=progress, cache_directory=cache_directory)
+        reference_seconds = time.perf_counter() - reference_start
+        exposure = reference_exposure(reference)
+        folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
+        mask = None
+        if config.caustic_mask:
+            mask = caustic_mask(loaded, reference, spp=min(config.reference_spp, 1024), max_depth=config.max_depth,
+                                seed=config.reference_seed)
+            folder.write_png(f"{IMAGES}/caustic_mask.png", np.repeat(mask[..., None], 3, axis=2).astype(np.float32))
+            record["caustic_mask_pixels"] = int(mask.sum())
+        record["reference"] = {key: reference_record[key] for key in ("key", "seconds", "cached", "path")}
 
-    method_seconds = 0.0
-    for method in methods:
-        cells = [(spp, seed) for seed in config.seeds for spp in config.spps
-                 if not os.path.isfile(_record_path(out, method.name, spp, seed))]
-        if not cells:
-            continue
-        warm_start = time.perf_counter()
-        method.warm_up(context)
-        record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
-        method_seconds += record["warm_up_seconds"][method.name]
-        for spp, seed in cells:
-            run_start = time.perf_counter()
-            result = method.run(context, Budget(spp=spp, seed=seed))
-            method_seconds += time.perf_counter() - run_start
-            row = _row(method.name, spp, seed, result, reference, mask)
-            write_images(out, cell_name(method.name, spp, seed), result.image, exposure)
-            write_json(_record_path(out, method.name, spp, seed),
-                       {"row": row, "details": result.details, "seconds": result.seconds})
-            if progress:
-                print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
-                      f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, luminance x{row['luminance_ratio']:.3f}",
-                      file=sys.stderr)
+        method_seconds = 0.0
+        for method in methods:
+            cells = [(spp, seed) for seed in config.seeds for spp in config.spps
+                     if folder.cell(cell_name(method.name, spp, seed)) is None]
+            if not cells:
+                continue
+            warm_start = time.perf_counter()
+            method.warm_up(context)
+            record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
+            method_seconds += record["warm_up_seconds"][method.name]
+            for spp, seed in cells:
+                run_start = time.perf_counter()
+                result = method.run(context, Budget(spp=spp, seed=seed))
+                method_seconds += time.perf_counter() - run_start
+                row = _row(method.name, spp, seed, result, reference, mask)
+                name = cell_name(method.name, spp, seed)
+                folder.write_image(f"{IMAGES}/{name}", result.image, exposure=exposure)
+                folder.record_cell(name, {"row": row, "details": result.details, "seconds": result.seconds})
+                if progress:
+                    print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
+                          f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, "
+                          f"luminance x{row['luminance_ratio']:.3f}", file=sys.stderr)
 
-    rows = _load_rows(out, record["config"]["methods"])
-    compare_report.add_equal_time_columns(rows)
-    report_start = time.perf_counter()
-    compare_report.write_results_csv(os.path.join(out, "results.csv"), rows, RESULT_COLUMNS + EXTRA_COLUMNS)
-    compare_report.plot_quality_vs_time(os.path.join(out, "quality_vs_time.png"), rows, spec.name, RELMSE_EPSILON)
-    if rows:
-        matched = compare_report.matched_pictures(
-            rows, reference, lambda row: np.load(_image_path(out, row["method"], row["spp"], row["seed"])))
-        compare_report.plot_image_grid(os.path.join(out, "image_grid.png"), *matched)
-        compare_report.plot_crop_grid(os.path.join(out, "crop_grid.png"), *matched)
-    compare_report.write_table_8(os.path.join(out, "table_8.md"), rows, spec.name, config)
-    compare_report.write_equal_time_table(os.path.join(out, "equal_time.md"), rows, RELMSE_EPSILON)
-    compare_report.write_table_6(os.path.join(out, "table_6.md"), rows, spec.name, config)
-    write_comparison_page(out, rows, config, spec.name, environment_record())
-    report_seconds = time.perf_counter() - report_start
-    total = time.perf_counter() - started
-    harness = max(0.0, total - method_seconds - reference_seconds)
-    record["status"] = "complete"
-    record["seconds"] = {"total": total, "methods": method_seconds, "reference": reference_seconds,
-                         "harness": harness, "of_which_scene_load": load_seconds, "of_which_reports": report_seconds}
-    record["harness_overhead_fraction"] = harness / total if total > 0 else 0.0
-    write_json(os.path.join(out, CONFIG_FILE), record)
-    return ComparisonResult(rows=rows, out=out, reference=record["reference"],
+        rows = _load_rows(folder, record["config"]["methods"])
+        add_equal_time_columns(rows)
+        report_start = time.perf_counter()
+        write_comparison_outputs(folder, rows, reference, config, spec.name, epsilon=RELMSE_EPSILON,
+                                 image_of=lambda row: np.load(folder.path_of(
+                                     f"{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy")),
+                                 provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
+        report_seconds = time.perf_counter() - report_start
+        total = time.perf_counter() - started
+        harness = max(0.0, total - method_seconds - reference_seconds)
+        record["status"] = "complete"
+        record["seconds"] = {"total": total, "methods": method_seconds, "reference": reference_seconds,
+                             "harness": harness, "of_which_scene_load": load_seconds,
+                             "of_which_reports": report_seconds}
+        record["harness_overhead_fraction"] = harness / total if total > 0 else 0.0
+        folder.write_json(CONFIG_FILE, record)
+        folder.complete(seconds=record["seconds"])
+    return ComparisonResult(rows=rows, out=folder.path, reference=record["reference"],
                             overhead_fraction=record["harness_overhead_fraction"])
+
+
+def comparison_folder(config, spec, out, *, overwrite=False):
+    """The :class:`~sparselt.storage.folder.ExperimentFolder` of a comparison: its identity is the configuration
+    (defaults explicit, without the lists a rerun may extend) and the scene's content identity."""
+    return ExperimentFolder(out, kind="compare", identity=config.identity(), scene=scene_identity(spec),
+                            overwrite=overwrite)
 
 
 def _row(name, spp, seed, result, reference, mask=None):
@@ -481,20 +491,9 @@ def _row(name, spp, seed, result, reference, mask=None):
     return row
 
 
-def write_images(out, name, image, exposure):
-    """``out/images/name`` as .npy (float32), .exr and tone-mapped .png, each written atomically."""
-    folder = os.path.join(out, IMAGES)
-    atomic_save_npy(os.path.join(folder, name + ".npy"), np.asarray(image, dtype=np.float32))
-    temporary = os.path.join(folder, ".tmp-" + name + ".exr")
-    mitsuba_backend.write_exr(temporary, image)
-    os.replace(temporary, os.path.join(folder, name + ".exr"))
-    write_png(os.path.join(folder, name + ".png"), image, exposure=exposure)
-
-
-def _load_rows(out, methods):
+def _load_rows(folder, methods):
     """Every finished cell in the folder: this run's and those of earlier runs of the same comparison."""
-    rows = [read_json(os.path.join(out, RECORDS, name))["row"]
-            for name in os.listdir(os.path.join(out, RECORDS)) if name.endswith(".json")]
+    rows = [record["row"] for record in folder.cells().values()]
     order = {name: index for index, name in enumerate(methods)}
     rows.sort(key=lambda row: (order.get(row["method"], len(order)), row["method"], row["seed"], row["spp"]))
     return rows

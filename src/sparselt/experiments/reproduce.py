@@ -21,7 +21,8 @@ import time
 from dataclasses import asdict
 
 from ..measurement import progress_bar
-from ..provenance import environment_record, read_json, write_json
+from ..provenance import environment_record
+from ..storage.folder import ExperimentFolder
 from ..report import Figure, Section, Table, write_page
 from ..thesis_numbers import thesis_table
 from .sparsity_analysis import gini_table
@@ -98,14 +99,21 @@ def chapter_4(scale, folder, progress):
 
 
 def _sampled(scene, kind, shape, spp, folder, name, progress, **lens):
-    """A signal sampled into ``folder/name`` (reused when it is already complete)."""
+    """A signal sampled into ``folder/name``; a complete one is reused only if it is this very configuration
+    and scene (else it is sampled again: the old store stays until the new one is complete)."""
     from ..rendering.acquire import AcquisitionConfig, acquire_signal
+    from ..rendering.identity import scene_identity
+    from ..rendering.scenes import get_scene
     from ..signal import load_signal, signal_status
 
     path = os.path.join(folder, name)
-    if signal_status(path) == "complete":
-        return load_signal(path)
     config = AcquisitionConfig(scene=scene, kind=kind, shape=tuple(shape), spp=spp, seed=1, **lens)
+    if signal_status(path) == "complete":
+        signal = load_signal(path)
+        digest = scene_identity(get_scene(scene).with_lens(config.aperture, config.focus_distance))["digest"]
+        if signal.meta.get("config") == config.record() and \
+                (signal.meta.get("scene_identity") or {}).get("digest") == digest:
+            return signal
     return acquire_signal(config, path, overwrite=True, progress=progress)
 
 
@@ -299,13 +307,20 @@ def chapter_8(scale, folder, progress):
 RUNNERS = {"4": chapter_4, "5": chapter_5, "6": chapter_6, "7": chapter_7, "8": chapter_8}
 
 
-def reproduce(chapter, scale, out, *, progress=True):
+def reproduce(chapter, scale, out, *, progress=True, overwrite=False):
     """Run the chapters' experiments into ``out`` and write ``out/index.html``; return its path.
+
+    ``out`` is an :class:`~sparselt.storage.folder.ExperimentFolder` whose
+    identity is the scale: chapters may be added by later runs, but a folder
+    of the other scale is refused (``overwrite`` replaces it), so quick and
+    thesis-scale results never mix. Each chapter is a cell; its experiments
+    live in ``chapterN/``, each in its own folder or signal store.
 
     Raises
     ------
     ValueError
-        Unknown chapter or scale, before anything runs.
+        Unknown chapter or scale, a folder of another scale or holding foreign
+        files, before anything runs.
     """
     chapters = _check(chapter, scale)
     if scale == "thesis":
@@ -313,39 +328,41 @@ def reproduce(chapter, scale, out, *, progress=True):
         print(f"reproduce: the thesis scale takes about {hours:.0f} hours on 2 cores (chapters "
               + ", ".join(f"{number}: {THESIS_HOURS[number]:g} h" for number in chapters)
               + "); rerun the same command to resume after an interruption", flush=True)
-    out = os.fspath(out)
-    os.makedirs(out, exist_ok=True)
+    folder = ExperimentFolder(out, kind="reproduce", identity={"scale": scale}, overwrite=overwrite)
+    folder.inspect()
     say = print if progress else (lambda *arguments, **options: None)
     sections = []
     started = time.perf_counter()
-    # One progress display for the whole run: a bar over the chapters; the experiments inside run quietly.
-    bar = progress_bar(progress, total=len(chapters), description="reproduce", unit="piece")
-    try:
-        for number in chapters:
-            folder = os.path.join(out, f"chapter{number}")
-            record = os.path.join(folder, "section.json")
+    with folder.open():
+        # One progress display for the whole run: a bar over the chapters; the experiments inside run quietly.
+        bar = progress_bar(progress, total=len(chapters), description="reproduce", unit="piece")
+        try:
+            for number in chapters:
+                if bar is not None:
+                    bar.set_postfix_str(f"chapter {number}")
+                record = folder.cell(f"chapter{number}")
+                if record is not None:
+                    sections.append(Section.from_record(record["section"]))
+                else:
+                    chapter_folder = folder.claim_folder(f"chapter{number}")
+                    start = time.perf_counter()
+                    section = RUNNERS[number](scale, chapter_folder, False)
+                    section.seconds = time.perf_counter() - start
+                    folder.record_cell(f"chapter{number}", {"scale": scale, "section": asdict(section)})
+                    sections.append(section)
+                if bar is not None:
+                    bar.update(1)
+        finally:
             if bar is not None:
-                bar.set_postfix_str(f"chapter {number}")
-            if os.path.isfile(record) and read_json(record).get("scale") == scale:
-                sections.append(Section.from_record(read_json(record)["section"]))
-            else:
-                os.makedirs(folder, exist_ok=True)
-                start = time.perf_counter()
-                section = RUNNERS[number](scale, folder, False)
-                section.seconds = time.perf_counter() - start
-                write_json(record, {"scale": scale, "section": asdict(section)})
-                sections.append(section)
-            if bar is not None:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
-    path = write_page(os.path.join(out, "index.html"), "sparselt: the thesis's experiments, reproduced", sections,
-                      environment_record(),
-                      note=f"Scale '{scale}' on {os.cpu_count()} cores; total wall time "
-                           f"{time.perf_counter() - started:.1f} s (chapters found finished are not rerun). Seeds: "
-                           "signals and methods 1, references 0. Scenes: Dragons = dof-sculptures, San Miguel = "
-                           "courtyard, Cornell Box = cornell-box (cornell-caustics for the caustics). Thesis values "
-                           "are shaded beige, ours green.")
+                bar.close()
+        folder.claim("index.html")
+        path = write_page(folder.path_of("index.html"), "sparselt: the thesis's experiments, reproduced", sections,
+                          environment_record(),
+                          note=f"Scale '{scale}' on {os.cpu_count()} cores; total wall time "
+                               f"{time.perf_counter() - started:.1f} s (chapters found finished are not rerun). "
+                               "Seeds: signals and methods 1, references 0. Scenes: Dragons = dof-sculptures, San "
+                               "Miguel = courtyard, Cornell Box = cornell-box (cornell-caustics for the caustics). "
+                               "Thesis values are shaded beige, ours green.")
+        folder.complete()
     say(f"reproduce: wrote {path}")
     return path

@@ -17,14 +17,16 @@ Two measurements explain the outcome (issue 13, item 5):
 
 Output folder: ``table_6_1.md`` (thesis numbers beside ours), ``table_6_1.csv``,
 ``compressibility.md``, ``figure_6_1.png`` (reference, SFT, PT at equal
-samples), ``images/`` (EXR/PNG/npy), ``records/`` (one JSON per run: a rerun
-resumes), ``table61.json`` (configuration, seeds, versions, git revision).
+samples), ``images/`` (EXR/PNG/npy), ``cells/`` (one JSON per run: a rerun
+resumes), ``table61.json`` (configuration, seeds, versions, git revision), in
+an :class:`~sparselt.storage.folder.ExperimentFolder` whose identity is the
+full configuration and the scene's content: a rerun with other settings (a
+larger shape, say) is refused instead of mixing results.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import asdict, dataclass
 
@@ -35,12 +37,14 @@ from ..images import reference_exposure
 from ..methods.base import Budget, ComparisonContext
 from ..methods.registry import get_method
 from ..methods.sft_reconstruction import reconstruct
-from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
+from ..provenance import environment_record
 from ..recovery.path_space import largest_energy_fraction
 from ..rendering import mitsuba_backend
 from ..rendering.layout import path_layout
+from ..rendering.identity import scene_identity
 from ..rendering.scenes import get_scene
-from .compare import IMAGES, RELMSE_EPSILON, quality, write_images
+from ..storage.folder import ExperimentFolder
+from .compare import IMAGES, RELMSE_EPSILON, check_reference_spp, quality
 
 def thesis_table_6_1():
     """Thesis Table 6.1 (6.1.2: K = N / 10^4 of the 100x100x4^8 path space): alpha -> sample counts.
@@ -59,7 +63,6 @@ def thesis_table_6_1():
 
 
 THESIS_SHAPE = (100, 100) + (4,) * 8
-RECORDS = "records"
 
 
 @dataclass(frozen=True)
@@ -107,9 +110,9 @@ def validate(config):
             raise ValueError(f"alpha must be at least 1 (B = alpha K buckets), got {alpha}")
     for spp in (config.spp,) + tuple(config.noise_spps):
         check_integer("samples per lattice point", spp, 1, 2**16 - 1)
-    sparsity = config.sparsity or max(1, round(size * 1e-4))
+    sparsity = max(1, round(size * 1e-4)) if config.sparsity is None else config.sparsity  # 0 is refused, not the default
     check_integer("sparsity (K)", sparsity, 1, size // 2)
-    check_integer("reference spp", config.reference_spp, 1)
+    check_reference_spp(tuple(config.shape[:2]), config.reference_spp)
     check_integer("seed", config.seed, 0, 2**32 - 2)
     if config.compressibility_shape is not None:
         if len(config.compressibility_shape) != len(config.shape):
@@ -133,27 +136,35 @@ def run_table61(config, out, *, progress=True):
         A kind or shape the oracle cannot evaluate, samples per point <= 0,
         alpha < 1, K larger than the grid allows: before any sampling.
     """
-    from ..rendering.baseline import cached_reference
-
     sparsity = validate(config)
     say = print if progress else (lambda *arguments, **options: None)
-    out = os.fspath(out)
-    os.makedirs(os.path.join(out, RECORDS), exist_ok=True)
-    os.makedirs(os.path.join(out, IMAGES), exist_ok=True)
     spec = get_scene(config.scene).with_parameters(config.scene_parameters)
+    identity = dict(config.record(), sparsity=sparsity, relmse_epsilon=RELMSE_EPSILON)
+    folder = ExperimentFolder(out, kind="table61", identity=identity, scene=scene_identity(spec))
+    folder.inspect()  # refusals before the scene loads
     resolution = tuple(config.shape[:2])
     scene = mitsuba_backend.MitsubaScene(spec, resolution, variant=config.variant)
     layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens, hide_emitters=spec.hide_emitters)
     if len(layout.axes) != len(config.shape):
         raise ValueError(f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max depth "
                          f"{config.max_depth} has {len(layout.axes)}: {', '.join(layout.axes)}")
+    with folder.open():
+        rows = _run_table61(folder, config, spec, scene, layout, sparsity, say, progress)
+        folder.complete()
+    return rows
+
+
+def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
+    from ..rendering.baseline import cached_reference
+
+    resolution = tuple(config.shape[:2])
     options = {"sparsity": sparsity, "sft_snr": config.snr}
-    write_json(os.path.join(out, "table61.json"), {"config": config.record(), "sparsity": sparsity,
-                                                   "relmse_epsilon": RELMSE_EPSILON, "provenance": environment_record()})
+    folder.write_json("table61.json", {"config": config.record(), "sparsity": sparsity,
+                                       "relmse_epsilon": RELMSE_EPSILON, "provenance": environment_record()})
     reference, reference_record = cached_reference(scene, config.kind, spp=config.reference_spp,
                                                    max_depth=config.max_depth, seed=0, progress=progress)
     exposure = reference_exposure(reference)
-    write_images(out, "reference", reference, exposure)
+    folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
     pt = get_method("pt")
     base = ComparisonContext(scene=scene, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
                              resolution=resolution, max_depth=config.max_depth, options=options)
@@ -166,9 +177,9 @@ def run_table61(config, out, *, progress=True):
     rows = []
     for alpha, spp in runs:
         name = f"alpha{alpha:g}_spp{spp}"
-        path = os.path.join(out, RECORDS, name + ".json")
-        if os.path.isfile(path):
-            rows.append(read_json(path))
+        done = folder.cell(name)
+        if done is not None:
+            rows.append(done)
             say(f"table61: {name} already done")
             continue
         say(f"table61: SFT alpha {alpha:g}, {spp} path samples per lattice point, K = {sparsity} of "
@@ -198,17 +209,17 @@ def run_table61(config, out, *, progress=True):
             "pt_equal_samples": quality(pt_samples, reference), "pt_equal_time_spp": equal_time_spp,
             "pt_equal_time": quality(pt_time, reference),
         }
-        write_images(out, f"sft_{name}", image, exposure)
-        write_images(out, f"pt_equal_samples_{name}", pt_samples, exposure)
-        write_json(path, row)
+        folder.write_image(f"{IMAGES}/sft_{name}", image, exposure=exposure)
+        folder.write_image(f"{IMAGES}/pt_equal_samples_{name}", pt_samples, exposure=exposure)
+        folder.record_cell(name, row)
         rows.append(row)
         say(f"table61: {name}: {result.path_samples} path samples ({row['samples_per_pixel']:.1f} per pixel), "
             f"SFT relMSE {row['sft']['relmse']:.3g} vs PT {row['pt_equal_samples']['relmse']:.3g} at equal samples")
 
-    compressibility = _compressibility(config, spec, sparsity, out, say)
-    _write_table(out, config, rows, sparsity)
-    _write_compressibility(out, config, compressibility, sparsity)
-    _figure(out, rows, exposure)
+    compressibility = _compressibility(config, spec, sparsity, folder, say)
+    _write_table(folder, config, rows, sparsity)
+    _write_compressibility(folder, config, compressibility, sparsity)
+    _figure(folder, rows, exposure)
     return rows
 
 
@@ -219,12 +230,12 @@ def _pt_rate(pt, context, pixels, seed):
     return pixels * spp / max(result.total_seconds, 1e-9)
 
 
-def _compressibility(config, spec, sparsity, out, say):
+def _compressibility(config, spec, sparsity, folder, say):
     from ..rendering.acquire import AcquisitionConfig, acquire_signal
 
-    path = os.path.join(out, RECORDS, "compressibility.json")
-    if os.path.isfile(path):
-        return read_json(path)
+    done = folder.cell("compressibility")
+    if done is not None:
+        return done
     shape = tuple(config.compressibility_shape or _default_compressibility_shape(config.shape))
     size = math.prod(shape)
     fraction = sparsity / math.prod(config.shape)
@@ -241,7 +252,7 @@ def _compressibility(config, spec, sparsity, out, say):
         rows.append(row)
         say(f"table61: compressibility at {shape}, {spp} spp: K/N keeps {row['K/N']['energy']:.1%} of the energy")
     record = {"shape": list(shape), "rows": rows}
-    write_json(path, record)
+    folder.record_cell("compressibility", record)
     return record
 
 

@@ -14,10 +14,10 @@ import sys
 
 import numpy as np
 
-from ..images import write_png
 from ..measurement import progress_bar
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
 from ..checks import check_integer
+from ..storage.folder import ExperimentFolder
 from .identity import scene_identity
 from .scenes import get_scene
 
@@ -44,7 +44,7 @@ def check_finite_image(image, name):
 
 
 def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, aperture=None,
-                     focus_distance=None, variant="llvm_ad_rgb", scene_spec=None, parameters=()):
+                     focus_distance=None, variant="llvm_ad_rgb", scene_spec=None, overwrite=False, parameters=()):
     """Render ``scene`` and write ``image.exr``, ``image.png`` and ``render.json`` into ``out``.
 
     Parameters
@@ -52,7 +52,10 @@ def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, a
     scene : str
         Built-in scene name or Mitsuba XML path.
     out : str
-        Output folder (created; must be empty or new, see the CLI's ``--overwrite``).
+        Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`:
+        the same render again rewrites it; another render there is refused
+        unless ``overwrite``; foreign files are always refused). Nothing is
+        written until the image is rendered, and then atomically.
     spp : int
         Samples per pixel (> 0).
     max_depth : int, optional
@@ -85,12 +88,12 @@ def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, a
     for size in resolution:
         check_integer("resolution", size, 1)
     check_wavefront(resolution, spp)
+    folder = ExperimentFolder(out, kind="render", scene=scene_identity(spec), overwrite=overwrite, identity={
+        "spp": spp, "max_depth": max_depth, "seed": seed, "resolution": list(resolution), "variant": variant})
+    folder.inspect()  # refusals before the scene loads
     loaded = mitsuba_backend.MitsubaScene(spec, resolution, variant=variant)
     image, seconds = loaded.render_path(spp, max_depth, seed)
     check_finite_image(image, spec.name)
-    os.makedirs(out, exist_ok=True)
-    mitsuba_backend.write_exr(os.path.join(out, "image.exr"), image)
-    write_png(os.path.join(out, "image.png"), image)
     record = {
         "scene": spec.name,
         "integrator": "path",
@@ -105,7 +108,11 @@ def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, a
         "samples_per_second": resolution[0] * resolution[1] * spp / seconds,
         "provenance": environment_record(),
     }
-    write_json(os.path.join(out, "render.json"), record)
+    with folder.open():
+        folder.write_exr("image.exr", image)
+        folder.write_png("image.png", image)
+        folder.write_json("render.json", record)
+        folder.complete()
     return image, record
 
 

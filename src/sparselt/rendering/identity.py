@@ -279,3 +279,14 @@ def scene_identity(spec):
     record["files"] = files
     record["digest"] = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
     return record
+
+
+def describe_scene_change(recorded, current):
+    """What changed between two :func:`scene_identity` records, for messages: the changed files, or the description."""
+    before, after = (recorded or {}).get("files") or {}, (current or {}).get("files") or {}
+    names = [name for name in sorted(set(before) | set(after)) if before.get(name) != after.get(name)]
+    if names:
+        return "changed: " + ", ".join(names[:3]) + (" ..." if len(names) > 3 else "")
+    if (recorded or {}).get("source") == "description":
+        return "the scene's description or the code generating it changed"
+    return "the scene changed"
