@@ -244,3 +244,21 @@ def test_every_command_records_its_provenance_in_the_manifest(finished_compariso
     listed = set(manifest["files"])
     on_disk = {name for name, _ in tree(finished_comparison)} - {MANIFEST_FILE}
     assert on_disk == listed
+
+
+def test_case_11_render_onto_a_full_disk_leaves_no_partial_image(tmp_path):
+    out = tmp_path / "render"
+    arguments = ["render", "--scene", "cornell-box", "--spp", "4", "--resolution", "64,64", "--out", str(out)]
+    script = textwrap.dedent(f"""
+        import resource, signal, sys
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (8000, 8000))
+        from sparselt.cli import main
+        sys.exit(main({arguments!r}))
+    """)
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 2 and "no space left" in result.stderr and "image.exr" in result.stderr
+    assert not (out / "image.exr").exists() and not (out / "render.json").exists()
+    assert not [name for name in os.listdir(out) if name.startswith(".tmp-")]
+    assert main(arguments) == 0
+    assert json.loads((out / MANIFEST_FILE).read_text())["status"] == "complete"

@@ -23,7 +23,7 @@ from dataclasses import asdict
 from ..measurement import progress_bar
 from ..provenance import environment_record
 from ..storage.folder import ExperimentFolder
-from ..report import Figure, Section, Table, write_page
+from ..report import Figure, Section, Table, page_html
 from ..thesis_numbers import thesis_table
 from .sparsity_analysis import gini_table
 
@@ -355,14 +355,12 @@ def reproduce(chapter, scale, out, *, progress=True, overwrite=False):
         finally:
             if bar is not None:
                 bar.close()
-        folder.claim("index.html")
-        path = write_page(folder.path_of("index.html"), "sparselt: the thesis's experiments, reproduced", sections,
-                          environment_record(),
-                          note=f"Scale '{scale}' on {os.cpu_count()} cores; total wall time "
-                               f"{time.perf_counter() - started:.1f} s (chapters found finished are not rerun). "
-                               "Seeds: signals and methods 1, references 0. Scenes: Dragons = dof-sculptures, San "
-                               "Miguel = courtyard, Cornell Box = cornell-box (cornell-caustics for the caustics). "
-                               "Thesis values are shaded beige, ours green.")
+        path = folder.write_text("index.html", page_html(
+            folder.path, "sparselt: the thesis's experiments, reproduced", sections, environment_record(),
+            note=f"Scale '{scale}' on {os.cpu_count()} cores; total wall time {time.perf_counter() - started:.1f} s "
+                 "(chapters found finished are not rerun). Seeds: signals and methods 1, references 0. Scenes: "
+                 "Dragons = dof-sculptures, San Miguel = courtyard, Cornell Box = cornell-box (cornell-caustics for "
+                 "the caustics). Thesis values are shaded beige, ours green."))
         folder.complete()
     say(f"reproduce: wrote {path}")
     return path

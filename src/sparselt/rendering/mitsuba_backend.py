@@ -748,8 +748,17 @@ def _power_heuristic(pdf_a, pdf_b):
     return dr.select(dr.isfinite(weight), weight, 0.0)
 
 
-def write_exr(path, image):
-    """Write a float32 ``(height, width, 3)`` image as OpenEXR through Mitsuba's Bitmap."""
+def exr_bytes(image):
+    """A float32 ``(height, width, 3)`` image as OpenEXR file bytes (Mitsuba's Bitmap, written to memory)."""
     initialize()
     bitmap = mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB)
-    bitmap.write(str(path))
+    stream = mi.MemoryStream()
+    bitmap.write(stream, mi.Bitmap.FileFormat.OpenEXR)
+    return bytes(stream.raw_buffer())[:stream.size()]
+
+
+def write_exr(path, image):
+    """Write a float32 ``(height, width, 3)`` image as OpenEXR, atomically (a full disk names the file)."""
+    from ..provenance import atomic_write_bytes
+
+    atomic_write_bytes(path, exr_bytes(image))

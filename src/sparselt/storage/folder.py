@@ -370,11 +370,7 @@ class ExperimentFolder:
         """A float32 ``(height, width, 3)`` image as OpenEXR (through the renderer's module)."""
         from ..rendering import mitsuba_backend
 
-        def write(temporary):
-            mitsuba_backend.write_exr(temporary + ".exr", image)  # the EXR writer wants its extension
-            os.replace(temporary + ".exr", temporary)
-
-        return self.write_with(name, write)
+        return self.write_bytes(name, mitsuba_backend.exr_bytes(image))
 
     def write_image(self, stem, image, *, exposure=1.0):
         """``stem.npy`` (float32), ``stem.exr`` and ``stem.png``: the three forms of every result image."""
