@@ -215,14 +215,20 @@ def test_case_15_an_interrupted_compare_speaks_of_finished_work_not_chunks(tmp_p
     out = tmp_path / "compare"
     command = [sys.executable, "-m", "sparselt.cli"] + COMPARE + ["--out", str(out), "--reference-spp", "100000",
                                                                   "--resolution", "64,64"]
+    # As from a terminal: a test runner started in the background ignores SIGINT, and its children inherit that.
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True,
-                               env=dict(os.environ, SPARSELT_CACHE=str(tmp_path / "cache")))
+                               env=dict(os.environ, SPARSELT_CACHE=str(tmp_path / "cache")),
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 120
     while not (out / MANIFEST_FILE).exists() and time.monotonic() < deadline and process.poll() is None:
         time.sleep(0.1)
     time.sleep(0.5)  # the reference is rendering now
     process.send_signal(signal.SIGINT)
-    _, error = process.communicate(timeout=120)
+    try:
+        _, error = process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        pytest.fail("compare did not stop on SIGINT")
     assert process.returncode == 130, error
     assert "finished work is kept" in error and "chunks" not in error
     assert json.loads((out / MANIFEST_FILE).read_text())["status"] == "running"
