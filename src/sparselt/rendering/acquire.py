@@ -41,7 +41,7 @@ from ..signal import Signal, load_signal
 from ..storage import zarr_store
 from ..storage.lock import LOCK_FILE, StoreLock, check_unlocked
 from ..storage.zarr_store import FORMAT, FORMAT_VERSION, ChunkGrid, ChunkJournal
-from .identity import scene_identity
+from .identity import describe_scene_change, scene_identity
 from .layout import KINDS, path_layout
 from .scenes import SCENES, SceneSpec, get_scene
 
@@ -730,7 +730,7 @@ def _inspect_store(path, config, identity, *, overwrite):
     if recorded != identity["digest"]:
         if overwrite:
             return "replace"
-        changed = _changed_files(meta.get("scene_identity") or {}, identity)
+        changed = describe_scene_change(meta.get("scene_identity") or {}, identity)
         raise ValueError(f"the scene of the unfinished signal {path!r} has changed since it was started"
                          f"{' (' + changed + ')' if changed else ''}; resuming would mix two scenes. "
                          "Restore the scene, or pass --overwrite to start again")
@@ -758,14 +758,6 @@ def _damaged_chunks_of_complete_store(path, meta):
     except zarr_store.CorruptSignalError:
         return list(range(grid.count))
     return zarr_store.damaged_chunks(path, grid, checksums)
-
-
-def _changed_files(recorded, current):
-    before, after = recorded.get("files") or {}, current.get("files") or {}
-    names = [name for name in sorted(set(before) | set(after)) if before.get(name) != after.get(name)]
-    if names:
-        return "changed: " + ", ".join(names[:3]) + (" ..." if len(names) > 3 else "")
-    return "its description or the code generating it changed" if recorded.get("source") == "description" else ""
 
 
 def _same_signal(recorded, requested):

@@ -282,11 +282,12 @@ def scene_identity(spec):
 
 
 def describe_scene_change(recorded, current):
-    """What changed between two :func:`scene_identity` records, for messages: the changed files, or the description."""
+    """What changed between two :func:`scene_identity` records, for messages: the changed files, or the
+    description (built-in scenes); '' when neither tells."""
     before, after = (recorded or {}).get("files") or {}, (current or {}).get("files") or {}
     names = [name for name in sorted(set(before) | set(after)) if before.get(name) != after.get(name)]
     if names:
         return "changed: " + ", ".join(names[:3]) + (" ..." if len(names) > 3 else "")
     if (recorded or {}).get("source") == "description":
-        return "the scene's description or the code generating it changed"
-    return "the scene changed"
+        return "its description or the code generating it changed"
+    return ""

@@ -206,7 +206,8 @@ class ExperimentFolder:
         if recorded.get("scene_digest") != self.full_identity.get("scene_digest"):
             from ..rendering.identity import describe_scene_change
 
-            difference += f" ({describe_scene_change(manifest.get('scene') or {}, self.scene or {})})"
+            change = describe_scene_change(manifest.get("scene") or {}, self.scene or {})
+            difference += f" ({change})" if change else ""
         raise FolderError(f"output folder {path!r} holds another {self.kind} run ({difference}); resuming would mix "
                           "the two: choose another --out, or pass --overwrite to replace it")
 
