@@ -323,13 +323,13 @@ def reproduce(chapter, scale, out, *, progress=True, overwrite=False):
         files, before anything runs.
     """
     chapters = _check(chapter, scale)
-    if scale == "thesis":
-        hours = sum(THESIS_HOURS[number] for number in chapters)
-        print(f"reproduce: the thesis scale takes about {hours:.0f} hours on 2 cores (chapters "
-              + ", ".join(f"{number}: {THESIS_HOURS[number]:g} h" for number in chapters)
-              + "); rerun the same command to resume after an interruption", flush=True)
     folder = ExperimentFolder(out, kind="reproduce", identity={"scale": scale}, overwrite=overwrite)
     folder.inspect()
+    if scale == "thesis":
+        hours = sum(THESIS_HOURS[number] for number in chapters)
+        print(f"reproduce: the thesis scale takes about {hours:.2g} hours on 2 cores (chapters "
+              + ", ".join(f"{number}: {THESIS_HOURS[number]:g} h" for number in chapters)
+              + "); rerun the same command to resume after an interruption", flush=True)
     say = print if progress else (lambda *arguments, **options: None)
     sections = []
     started = time.perf_counter()
