@@ -12,7 +12,6 @@ import io
 
 import numpy as np
 
-from .provenance import atomic_write_bytes
 
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)
@@ -84,11 +83,6 @@ def png_bytes(image, *, exposure=1.0):
     return buffer.getvalue()
 
 
-def write_png(path, image, *, exposure=1.0):
-    """Tone-map a linear ``(height, width, 3)`` image and write it as PNG, atomically."""
-    atomic_write_bytes(path, png_bytes(image, exposure=exposure))
-
-
 def figure_bytes(figure, **options):
     """A matplotlib figure as PNG bytes; the figure is closed."""
     import matplotlib.pyplot as pyplot
@@ -98,7 +92,3 @@ def figure_bytes(figure, **options):
     pyplot.close(figure)
     return buffer.getvalue()
 
-
-def save_figure(figure, path, **options):
-    """Save a matplotlib figure atomically and close it."""
-    atomic_write_bytes(path, figure_bytes(figure, **options))

@@ -433,15 +433,6 @@ def signal_identity(signal):
             "content_digest": hashlib.sha256(checksums).hexdigest() if meta.get("chunk_crc32") else None}
 
 
-def folder_status(path):
-    """``(kind, status)`` of an experiment folder, or ``None`` when ``path`` holds no manifest."""
-    manifest_path = os.path.join(os.fspath(path), MANIFEST_FILE)
-    if not os.path.isfile(manifest_path):
-        return None
-    manifest = read_json(manifest_path)
-    return manifest.get("kind"), manifest.get("status")
-
-
 def _remove_listed_files(root, names):
     """Remove the listed files under ``root``; a listed sub-folder (``name/``) loses only what its own
     manifest or signal store says sparselt wrote. Folders left empty go too; nothing else is touched."""
@@ -489,4 +480,4 @@ def _listing(names):
     return ", ".join(repr(name) for name in names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
 
 
-__all__ = ["ExperimentFolder", "FolderError", "MANIFEST_FILE", "folder_status", "identity_differences", "signal_identity"]
+__all__ = ["ExperimentFolder", "FolderError", "MANIFEST_FILE", "identity_differences", "signal_identity"]
