@@ -20,9 +20,9 @@ demo: $(STAMP)
 	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,16,16 --spp 16 --seed 1 --out $(DEMO)/signal --overwrite
 	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures --overwrite
 	$(BIN)/sparselt analyze $(DEMO)/signal --out $(DEMO)/analysis --overwrite
-	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis,bilateral,cosamp-bilateral,oidn --spp 16,40,81 --reference-spp 1024 --gamma 0.25 --out $(DEMO)/compare --overwrite
+	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis,bilateral,cosamp-bilateral,oidn --spp 16,40,81 --reference-spp 1024 --out $(DEMO)/compare --overwrite
 	# PT at larger budgets, so that every method has PT at its own time (the same folder: the run resumes)
-	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt --spp 327,1311 --reference-spp 1024 --gamma 0.25 --out $(DEMO)/compare
+	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 128,128,16,16 --methods pt --spp 327,1311 --reference-spp 1024 --out $(DEMO)/compare
 	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, comparison in $(DEMO)/compare (table_8.md, quality_vs_time.png, image_grid.png)"
 	@echo "demo: report page: file://$(CURDIR)/$(DEMO)/compare/index.html"
 

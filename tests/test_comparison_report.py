@@ -30,8 +30,17 @@ SHAPE = (16, 16, 4, 4)
 
 
 def _config(kind="dof", methods=("pt", "cosamp")):
-    return SimpleNamespace(kind=kind, shape=SHAPE, output_resolution=(16, 16), spps=(40, 81), methods=methods,
-                           map_spp=None)
+    return SimpleNamespace(kind=kind, shape=SHAPE, output_resolution=(16, 16), spps=(40, 81), methods=methods)
+
+
+FAMILIES = {"pt": "path tracing", "cosamp": "cosamp", "guided-sft": "guided"}
+
+
+def _methods(names=("pt", "cosamp", "guided-sft"), **families):
+    """Method records as compare.json holds them: roles and options."""
+    return {name: {"baseline": name == "pt", "family": families.get(name, FAMILIES.get(name, "other")),
+                   "thesis_procedure": False, "options": {"map_spp": 16} if name == "guided-sft" else {},
+                   "source": "test", "description": name} for name in names}
 
 
 def _rows(methods=("pt", "cosamp"), spps=(40, 81), seeds=(1, 2)):
@@ -59,6 +68,7 @@ def _write(tmp_path, rows, config, scene="dof-sculptures"):
     images = {(row["method"], row["spp"], row["seed"]): rng.random((16, 16, 3)).astype(np.float32) for row in rows}
     with folder.open():
         written = write_comparison_outputs(folder, rows, rng.random((16, 16, 3)), config, scene, epsilon=0.01,
+                                           methods=_methods(config.methods),
                                            image_of=lambda row: images[row["method"], row["spp"], row["seed"]],
                                            provenance={"versions": {"numpy": np.__version__}, "git": None})
         folder.complete()
@@ -89,7 +99,7 @@ def test_results_csv_puts_the_column_order_first_and_quotes_through_csv(tmp_path
 
 
 def test_table_8_puts_the_thesis_beside_cosamp_at_depth_of_field_only():
-    table = table_8(_rows(), "dof-sculptures", _config())
+    table = table_8(_rows(), "dof-sculptures", _config(), methods=_methods())
     thesis = THESIS_TABLES["dof-sculptures"][2]
     assert [table.columns[index] for index in table.thesis_columns] == [
         "thesis Total", "thesis Sampling", "thesis CoSaMP", "thesis Integration"]
@@ -97,22 +107,24 @@ def test_table_8_puts_the_thesis_beside_cosamp_at_depth_of_field_only():
     assert by_row["cosamp", "40"][-4:] == [f"{value:g}" for value in thesis[40]]
     assert by_row["pt", "40"][-4:] == ["-"] * 4
     assert "| method | SPP | Total | Sampling | CoSaMP | Integration |" in table.markdown()
-    assert not table_8(_rows(), "dof-sculptures", _config(kind="indirect")).thesis_columns
-    assert not table_8(_rows(), "cornell-box", _config()).thesis_columns
+    assert not table_8(_rows(), "dof-sculptures", _config(kind="indirect"), methods=_methods()).thesis_columns
+    assert not table_8(_rows(), "cornell-box", _config(), methods=_methods()).thesis_columns
 
 
 def test_equal_time_table_compares_only_where_pt_reaches_the_time():
-    cells = {(label, cells[0]): cells for label, cells in equal_time_table(_rows()).rows}
+    cells = {(label, cells[0]): cells for label, cells in equal_time_table(_rows(), methods=_methods()).rows}
     assert set(cells) == {("cosamp", "40"), ("cosamp", "81")}  # PT itself is not compared with PT
     assert cells["cosamp", "40"][3] == "0.02" and cells["cosamp", "81"][3] == "-"
 
 
 def test_table_6_for_guided_methods_with_the_thesis_beside(tmp_path):
     rows = _rows(methods=("pt", "guided-sft"))
-    ours, thesis = table_6(rows, "cornell-caustics", _config(kind="path", methods=("pt", "guided-sft")))
+    ours, thesis = table_6(rows, "cornell-caustics", _config(kind="path", methods=("pt", "guided-sft")),
+                           methods=_methods())
     assert [label for label, _ in ours.rows] == ["guided-sft", "guided-sft"]
+    assert [cells[2] for _, cells in ours.rows] == ["16", "16"]  # the method's own resolved map_spp
     assert thesis.kinds == ["thesis"] * 3 and thesis.rows[0] == ("1000x1000", ["489", "238", "199"])
-    assert table_6(_rows(), "cornell-caustics", _config()) == []
+    assert table_6(_rows(), "cornell-caustics", _config(), methods=_methods()) == []
     _, written = _write(tmp_path, rows, _config(kind="path", methods=("pt", "guided-sft")), scene="cornell-caustics")
     assert {"table_6.md", "table_6.csv"} <= set(written)
     assert "Thesis Table 6.2 (Cornell Box" in (tmp_path / "c" / "table_6.md").read_text()
@@ -129,4 +141,27 @@ def test_writing_outside_an_open_folder_is_refused(tmp_path):
     folder = ExperimentFolder(tmp_path / "c", kind="compare-report-test", identity={})
     with pytest.raises(RuntimeError, match="outside 'with folder.open"):
         write_comparison_outputs(folder, [], np.zeros((16, 16, 3)), _config(), "cornell-box", epsilon=0.01,
-                                 image_of=None, provenance={})
+                                 methods={}, image_of=None, provenance={})
+
+
+def test_reports_choose_rows_by_role_not_by_name():
+    """A baseline, a guided method and a CoSaMP method with names that match none of the old prefixes."""
+    names = ("reference-tracer", "adaptive-guide", "my-sparse")
+    rows = _rows(methods=names)
+    methods = _methods(names, **{"adaptive-guide": "guided", "my-sparse": "cosamp"})
+    methods["reference-tracer"]["baseline"] = True
+    methods["adaptive-guide"]["options"] = {"map_spp": 7}
+    by_row = {(label, cells[0]): cells for label, cells in table_8(rows, "dof-sculptures", _config(),
+                                                                    methods=methods).rows}
+    thesis = THESIS_TABLES["dof-sculptures"][2]
+    assert by_row["my-sparse", "40"][-4:] == [f"{value:g}" for value in thesis[40]]
+    assert by_row["adaptive-guide", "40"][-4:] == ["-"] * 4
+    compared = {label for label, _ in equal_time_table(rows, methods=methods).rows}
+    assert compared == {"adaptive-guide", "my-sparse"}  # the baseline is not compared with itself
+    ours, _ = table_6(rows, "cornell-caustics", _config(kind="path"), methods=methods)
+    assert {label for label, _ in ours.rows} == {"adaptive-guide"}
+    assert all(cells[2] == "7" and cells[4] != "-" for _, cells in ours.rows)  # its map_spp; the baseline's time
+    # A method named like the old prefixes but of another family gets no thesis column.
+    renamed = _rows(methods=("pt", "cosamp-lookalike"))
+    table = table_8(renamed, "dof-sculptures", _config(), methods=_methods(("pt", "cosamp-lookalike")))
+    assert all(cells[-4:] == ["-"] * 4 for _, cells in table.rows)

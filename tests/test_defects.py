@@ -209,11 +209,21 @@ def test_sft_refuses_samples_whose_energy_overflows():
         sft(lambda indices: np.full(indices.shape, 1e300), 256, 4, seed=0)
 
 
-def test_cli_constants_come_from_their_modules():
+def test_every_kind_the_cli_offers_has_a_layout_and_others_are_refused(capsys):
+    """The kinds ``sample --kind`` accepts are exactly those the sampler can lay out (each builds a layout),
+    and a kind it does not know stops at the parser with exit 2, naming the choices."""
     from sparselt.cli import build_parser
-    from sparselt.rendering.layout import KINDS
+    from sparselt.rendering.layout import path_layout
 
     parser = build_parser()
     sample = next(action for action in parser._subparsers._group_actions[0].choices["sample"]._actions
                   if action.dest == "kind")
-    assert tuple(sample.choices) == KINDS
+    for kind in sample.choices:
+        assert path_layout(kind, 3, thin_lens=kind == "dof").axes
+    with pytest.raises(ValueError):
+        path_layout("fog", 3)
+    with pytest.raises(SystemExit) as stopped:
+        main(["sample", "--scene", "cornell-box", "--kind", "fog", "--shape", "4,4", "--out", "unused"])
+    assert stopped.value.code == 2
+    error = capsys.readouterr().err
+    assert "invalid choice: 'fog'" in error and all(kind in error for kind in sample.choices)

@@ -1,10 +1,9 @@
 """Image metrics (thesis 5.2): SSIM, PSNR, RMSE, relMSE and the HDR SSIM convention.
 
-Golden values come from scikit-image, an independent implementation; the
-pinned numbers were produced with scikit-image 0.26.0 by
-``structural_similarity(a, b, data_range=1.0, gaussian_weights=True,
-sigma=1.5, use_sample_covariance=False[, channel_axis=-1])`` on the arrays
-built in ``test_ssim_pinned_golden_values``.
+Golden values come from scikit-image, an independent implementation
+(``structural_similarity(a, b, data_range=..., gaussian_weights=True,
+sigma=1.5, use_sample_covariance=False[, channel_axis=-1])``), and from the
+SSIM formula worked by hand where it has a closed form (constant images).
 """
 
 import math
@@ -68,16 +67,18 @@ def test_ssim_equals_scikit_image(shape, channel_axis, data_range, seed):
     assert structural_similarity(image, reference, data_range=data_range, channel_axis=channel_axis) == ours
 
 
-def test_ssim_pinned_golden_values():
-    rng = np.random.default_rng(2024)
-    gray = rng.random((24, 20))
-    noisy_gray = gray + 0.1 * rng.standard_normal((24, 20))
-    assert structural_similarity(noisy_gray, gray, data_range=1.0) == pytest.approx(0.9351664264222806, abs=1e-10)
-    colour = rng.random((16, 18, 3))
-    noisy_colour = np.clip(colour + 0.2 * rng.standard_normal(colour.shape), 0, 1)
-    assert structural_similarity(noisy_colour, colour, data_range=1.0, channel_axis=-1) == pytest.approx(
-        0.8017009255349618, abs=1e-10
-    )
+@pytest.mark.parametrize("first, second, data_range", [(0.2, 0.7, 1.0), (10.0, 200.0, 255.0), (0.5, 0.5, 1.0)])
+def test_ssim_of_two_constant_images_is_the_luminance_term(first, second, data_range):
+    """Golden values from the formula by hand: constant images have zero variance and covariance, so
+    SSIM = (2 a b + C1) / (a^2 + b^2 + C1) with C1 = (0.01 L)^2 (the contrast-structure term is C2 / C2)."""
+    c1 = (0.01 * data_range) ** 2
+    expected = (2 * first * second + c1) / (first ** 2 + second ** 2 + c1)
+    image, reference = np.full((16, 16), first), np.full((16, 16), second)
+    assert structural_similarity(image, reference, data_range=data_range) == pytest.approx(expected, rel=1e-12)
+    colour = np.stack([image, reference, image], axis=-1)
+    flipped = np.stack([reference, image, image], axis=-1)  # channels 0 and 1 swapped, channel 2 equal
+    assert structural_similarity(colour, flipped, data_range=data_range, channel_axis=-1) == pytest.approx(
+        (2 * expected + 1) / 3, rel=1e-12)
 
 
 def test_ssim_accepts_integer_and_float32_input_as_float64():

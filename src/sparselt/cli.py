@@ -9,7 +9,6 @@ import sys
 # Constants live where they are defined; these modules import neither Mitsuba nor Dr.Jit.
 from .experiments.compare import KINDS as COMPARE_KINDS
 from .experiments.sparsity_analysis import DEFAULT_GAMMAS
-from .methods.guided import MODES as GUIDING_MODES
 from .rendering.acquire import DEFAULT_MAX_DEPTH, DEFAULT_SPP, NONFINITE_POLICIES
 from .rendering.layout import KINDS
 from .rendering.mitsuba_backend import DEFAULT_VARIANT, SUPPORTED_VARIANTS
@@ -64,6 +63,66 @@ class _SceneParameters(argparse.Action):
             parser.error(f"-D {name} is given twice ({pairs[name]!r} and {value!r}); give each parameter once")
         pairs[name] = value
         setattr(namespace, self.dest, tuple(sorted(pairs.items())))
+
+
+class _MethodOption(argparse.Action):
+    """``--option METHOD.NAME=VALUE``, repeatable: collects ``{METHOD: {NAME: VALUE}}`` (``*`` for every method)."""
+
+    def __call__(self, parser, namespace, text, option_string=None):
+        target, separator, value = text.partition("=")
+        method, dot, name = target.strip().rpartition(".")
+        if not separator or not dot or not method or not name:
+            parser.error(f"--option takes METHOD.NAME=VALUE (for instance cosamp.gamma=0.5, or '*.gamma=0.5' for "
+                         f"every method that declares gamma), got {text!r}")
+        options = {key: dict(values) for key, values in (getattr(namespace, self.dest) or {}).items()}
+        values = options.setdefault(method, {})
+        key = name.replace("-", "_")
+        if key in values and values[key] != value:
+            parser.error(f"--option {method}.{name} is given twice ({values[key]!r} and {value!r}); give it once")
+        values[key] = value
+        setattr(namespace, self.dest, options)
+
+
+#: Flags that each set one option for several methods at once, replaced by --option METHOD.NAME=VALUE (issue 19).
+REMOVED_FLAGS = {"--gamma": "gamma", "--sparsity": "sparsity", "--alpha": "alpha", "--sft-snr": "snr",
+                 "--map-spp": "map_spp", "--defensive": "defensive", "--guiding-mode": "mode",
+                 "--thesis-faithful": None}
+
+
+class _RemovedFlag(argparse.Action):
+    def __call__(self, parser, namespace, values, option_string=None):
+        name = REMOVED_FLAGS[option_string]
+        if name is None:
+            parser.error(f"{option_string} was removed: run the method cosamp-thesis (the thesis's procedure) instead")
+        parser.error(f"{option_string} was replaced by --option METHOD.{name}=VALUE, one method at a time (or "
+                     f"--option '*.{name}=VALUE' for every method of the run that declares {name}); "
+                     f"'sparselt methods METHOD' lists a method's options")
+
+
+def _add_plugin_option(parser):
+    parser.add_argument("--plugin", action="append", default=[], metavar="MODULE",
+                        help="import MODULE (on the Python path) first: its @register methods join the built-in ones "
+                             "(repeatable; installed plug-ins of the entry-point group sparselt.methods load "
+                             "without it)")
+
+
+def _options_epilog():
+    """The generated list of every registered method's options, for ``compare --help``."""
+    import textwrap
+
+    from .methods import get_method, method_names
+
+    groups = {}
+    for name in method_names():
+        declared = get_method(name).Options.declared()
+        summary = " ".join(f"{item.name}={item.default_description()}" for item in declared) or "(no options)"
+        groups.setdefault(summary, []).append(name)
+    lines = ["method options: --option METHOD.NAME=VALUE (repeatable; '*.NAME=VALUE' sets NAME for every method of",
+             "the run that declares it). Defaults below; 'sparselt methods METHOD' gives ranges and help.", ""]
+    for summary, names in groups.items():
+        lines.append(f"  {', '.join(names)}:")
+        lines += textwrap.wrap(summary, width=96, initial_indent="      ", subsequent_indent="      ")
+    return "\n".join(lines)
 
 
 def _add_scene_options(parser):
@@ -163,7 +222,7 @@ def build_parser():
     bench_integrate.set_defaults(handler=_bench_integrate)
 
     compare = commands.add_parser(
-        "compare",
+        "compare", formatter_class=argparse.RawDescriptionHelpFormatter, epilog=_options_epilog(),
         help="equal-time comparison of methods against path tracing",
         description="Run methods at several budgets on one scene, kernels warmed first, and measure SSIM, relMSE "
         "(epsilon 0.01) and the luminance ratio against a cached path-traced reference. Writes results.csv, "
@@ -179,15 +238,12 @@ def build_parser():
     compare.add_argument("--resolution", type=_shape, default=None, help="output width,height (default: the shape's image axes)")
     compare.add_argument("--reference-spp", type=int, default=4096, help="reference samples per pixel (default: %(default)s)")
     compare.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
-    compare.add_argument("--gamma", type=float, default=None, help="gamma of eq. 7.1 for CoSaMP (default 0.25; thesis: 0.25 DoF, 0.5 architecture)")
-    compare.add_argument("--sparsity", type=int, default=None, help="K for CoSaMP (default N/200) and the SFT (default N/10^4)")
-    compare.add_argument("--alpha", type=float, default=None, help="sft methods: buckets per coefficient, B = alpha K (default 4)")
-    compare.add_argument("--sft-snr", type=float, default=None, help="sft methods: SNR in dB the SFT assumes (default 10)")
-    compare.add_argument("--thesis-faithful", action="store_true", help="make 'cosamp' follow thesis 8.1.1 exactly")
-    compare.add_argument("--map-spp", type=int, default=None, help="guided methods: pilot samples per map pixel (default 16)")
-    compare.add_argument("--defensive", type=float, default=None, help="guided methods: weight of the uniform density (default 0.1)")
-    compare.add_argument("--guiding-mode", choices=GUIDING_MODES, default=None,
-                         help="guided methods: per-pixel conditional (default) or global cells")
+    compare.add_argument("--option", dest="options", action=_MethodOption, default={}, metavar="METHOD.NAME=VALUE",
+                         help="a method's option (repeatable; see the list below)")
+    for flag in REMOVED_FLAGS:
+        compare.add_argument(flag, nargs=0 if flag == "--thesis-faithful" else None, action=_RemovedFlag,
+                             help=argparse.SUPPRESS)
+    _add_plugin_option(compare)
     compare.add_argument("--caustic-mask", action="store_true",
                          help="also report relMSE inside a caustic mask (bright spots on diffuse surfaces)")
     compare.add_argument("--out", required=True, help="output folder (rerun to resume)")
@@ -234,10 +290,16 @@ def build_parser():
     reproduce.add_argument("--overwrite", action="store_true",
                            help="replace a folder holding the other scale (only the files sparselt wrote there)")
     reproduce.add_argument("--no-progress", action="store_true", help="hide progress output")
+    _add_plugin_option(reproduce)
     reproduce.set_defaults(handler=_reproduce)
 
-    methods = commands.add_parser("methods", help="list the comparison methods",
-                                  description="List the registered comparison methods, the kinds they support and what they do.")
+    methods = commands.add_parser(
+        "methods", help="list the comparison methods, or describe some",
+        description="Without names: every registered comparison method, the kinds it supports and what it does. "
+                    "With names: each one's kinds, roles, source and every option with its type, default, "
+                    "allowed range and thesis section.")
+    methods.add_argument("names", nargs="*", metavar="METHOD", help="methods to describe")
+    _add_plugin_option(methods)
     methods.set_defaults(handler=_list_methods)
 
     show = commands.add_parser("show", help="pictures of a signal", description="Write the integrated image and 2-D slices of a signal as PNGs.")
@@ -335,10 +397,8 @@ def _compare(arguments):
         spps=tuple(arguments.spp), seeds=tuple(arguments.seeds),
         resolution=tuple(arguments.resolution) if arguments.resolution else None,
         reference_spp=arguments.reference_spp, max_depth=arguments.max_depth, aperture=arguments.aperture,
-        focus_distance=arguments.focus_distance, gamma=arguments.gamma, sparsity=arguments.sparsity,
-        thesis_faithful=arguments.thesis_faithful, map_spp=arguments.map_spp, defensive=arguments.defensive,
-        guiding_mode=arguments.guiding_mode, caustic_mask=arguments.caustic_mask, alpha=arguments.alpha,
-        sft_snr=arguments.sft_snr, variant=arguments.variant, scene_parameters=arguments.parameters)
+        focus_distance=arguments.focus_distance, options=arguments.options, caustic_mask=arguments.caustic_mask,
+        variant=arguments.variant, scene_parameters=arguments.parameters)
     result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
     print(result.table())
     print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
@@ -365,7 +425,7 @@ def _reproduce(arguments):
     from .experiments.reproduce import reproduce
 
     path = reproduce(arguments.chapter, arguments.scale, arguments.out, progress=not arguments.no_progress,
-                     overwrite=arguments.overwrite)
+                     overwrite=arguments.overwrite, plugins=tuple(arguments.plugin))
     print(f"open {os.path.abspath(path)}")
     return 0
 
@@ -373,10 +433,41 @@ def _reproduce(arguments):
 def _list_methods(arguments):
     from .methods import get_method, method_names
 
-    for name in method_names():
-        method = get_method(name)
-        print(f"{name:16s} {','.join(method.kinds):22s} {method.description}")
+    if not arguments.names:
+        for name in method_names():
+            method = get_method(name)
+            print(f"{name:16s} {','.join(method.kinds):22s} {method.description}")
+        print("\n'sparselt methods METHOD' describes a method and its options")
+        return 0
+    for index, name in enumerate(arguments.names):
+        print(("\n" if index else "") + describe_method(get_method(name)))
     return 0
+
+
+def describe_method(method):
+    """A method's description, kinds, roles, source and options, as ``sparselt methods NAME`` prints it."""
+    import textwrap
+
+    from .methods.options import describe_options
+    from .methods.registry import method_source
+
+    roles = method.roles()
+    lines = [f"{method.name}: {method.description}",
+             f"  kinds: {', '.join(method.kinds)}",
+             f"  family: {roles['family']}; baseline: {'yes' if roles['baseline'] else 'no'}; thesis procedure: "
+             f"{'yes' if roles['thesis_procedure'] else 'no'}",
+             f"  source: {method_source(method.name)}"]
+    described = describe_options(method.Options)
+    if not described:
+        lines.append("  options: none")
+        return "\n".join(lines)
+    lines.append(f"  options (--option {method.name}.NAME=VALUE):")
+    width = max(len(row[0]) for row in described)
+    for name, kind, default, allowed, section, help_text in described:
+        where = f"; thesis {section}" if section else ""
+        lines.append(f"    {name:{width}s}  {kind:5s}  default {default}; {allowed}{where}")
+        lines += textwrap.wrap(help_text, width=96, initial_indent=" " * (width + 6), subsequent_indent=" " * (width + 6))
+    return "\n".join(lines)
 
 
 def _show(arguments):
@@ -411,12 +502,32 @@ def _describe(error):
     return str(error)
 
 
+def _plugins_named(argv):
+    """The ``--plugin MODULE`` values of a command line, read before the parser is built (its help lists them)."""
+    modules = []
+    for index, word in enumerate(argv):
+        if word == "--plugin" and index + 1 < len(argv):
+            modules.append(argv[index + 1])
+        elif word.startswith("--plugin="):
+            modules.append(word.split("=", 1)[1])
+    return modules
+
+
 def main(argv=None):
     from .provenance import record_command
 
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        from .methods import load_plugins
+
+        load_plugins(_plugins_named(argv))  # installed (entry-point) plug-ins too
+    except ValueError as error:
+        command = next((word for word in argv if not word.startswith("-")), "")
+        print(f"sparselt{' ' + command if command else ''}: error: {error}", file=sys.stderr)
+        return 2
     parser = build_parser()
     arguments = parser.parse_args(argv)
-    record_command(["sparselt"] + list(sys.argv[1:] if argv is None else argv))
+    record_command(["sparselt"] + argv)
     try:
         try:
             return arguments.handler(arguments)

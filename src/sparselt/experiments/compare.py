@@ -50,7 +50,8 @@ from ..analysis.metrics import (
 )
 from ..checks import check_integer, check_positive_finite
 from ..images import luminance
-from ..methods import TIME_PHASES, Budget, ComparisonContext, get_method
+from ..methods import TIME_PHASES, Budget, ComparisonContext, baseline_name, get_method, resolve_options
+from ..methods.contract import check_result
 from ..provenance import environment_record
 from ..rendering import mitsuba_backend
 from ..rendering.baseline import check_wavefront
@@ -84,12 +85,12 @@ class ComparisonConfig:
     ----------
     scene : str
         Built-in scene name or Mitsuba XML file.
-    kind : {'dof', 'indirect', 'path'}
+    kind : {'dof', 'indirect', 'path', 'path-indirect'}
         Signal kind whose integral the methods render.
     shape : tuple of int
         Signal grid of the kind (image axes first), as in ``sparselt sample``.
     methods : tuple of str
-        Registered method names.
+        Registered method names (built-in or plug-in).
     spps : tuple of int
         Budgets: path samples per output pixel.
     seeds : tuple of int
@@ -104,21 +105,15 @@ class ComparisonConfig:
         Longest path (Mitsuba's convention).
     aperture, focus_distance : float or None
         Thin-lens override of the scene's camera.
-    gamma : float or None
-        Gamma of eq. 7.1 for the CoSaMP methods (default 0.25).
-    sparsity : int or None
-        ``K`` for the CoSaMP methods (default ``N / 200``).
-    thesis_faithful : bool
-        Make ``cosamp`` follow thesis 8.1.1 exactly (as ``cosamp-thesis``).
-    map_spp, defensive, guiding_mode : int, float, str or None
-        Guided methods: pilot samples per map cell of the image plane (default
-        16), weight of the uniform density (default 0.1), 'per-pixel'
-        (default) or 'global'.
+    options : dict
+        The methods' options: ``{method name: {option name: value}}``; the
+        key ``'*'`` sets an option for every method of the run that
+        declares it (a method's own entry wins). Values may be text (from a
+        command line). Each method declares its options, defaults and
+        ranges (``sparselt methods NAME``); :meth:`resolved_options` checks
+        them all before anything runs.
     caustic_mask : bool
         Also report ``relmse_caustic``: relMSE inside :func:`caustic_mask`.
-    alpha, sft_snr : float or None
-        The ``sft`` and ``guided-sft`` methods: buckets per coefficient
-        (default 4) and the SNR in dB the SFT assumes (default 10).
     variant : str
         Mitsuba variant.
     scene_parameters : tuple of (str, str)
@@ -137,15 +132,8 @@ class ComparisonConfig:
     max_depth: int = 3
     aperture: float | None = None
     focus_distance: float | None = None
-    gamma: float | None = None
-    sparsity: int | None = None
-    thesis_faithful: bool = False
-    map_spp: int | None = None
-    defensive: float | None = None
-    guiding_mode: str | None = None
+    options: dict = field(default_factory=dict)
     caustic_mask: bool = False
-    alpha: float | None = None
-    sft_snr: float | None = None
     variant: str = "llvm_ad_rgb"
     scene_parameters: tuple = ()
 
@@ -153,49 +141,87 @@ class ComparisonConfig:
     def output_resolution(self):
         return tuple(self.resolution) if self.resolution is not None else tuple(self.shape[:2])
 
+    def resolved_options(self):
+        """``{method: MethodOptions}`` of every method of the run: the one validation of their options.
+
+        Raises
+        ------
+        ValueError
+            Options for a method name that is not registered, a ``'*'``
+            option no registered method declares, or an option a method does
+            not declare or whose value it refuses (the message names
+            ``method.option`` and what is allowed).
+        TypeError
+            ``options`` is not a mapping of mappings, or a value has the wrong type.
+        """
+        return resolve_run_options(self.methods, self.options, self.shape)
+
     def record(self):
         record = asdict(self)
         for name in ("shape", "methods", "spps", "seeds"):
             record[name] = list(record[name])
         record["scene_parameters"] = [list(pair) for pair in self.scene_parameters]
         record["resolution"] = list(self.output_resolution)
+        record["options"] = {method: dict(values) for method, values in sorted(self.options.items())}
         return record
 
     def identity(self):
-        """The record without the lists a rerun may extend, every default made explicit.
+        """What makes two comparisons the same: the record without the lists a rerun may extend, and
+        every method's options resolved (``method_options``).
 
-        Stating a default (``--gamma 0.25``) is the same comparison as leaving
-        it out. ``sparsity`` stays ``None`` when not given: its default
-        differs per method (N/200 for CoSaMP, N/10^4 for the SFT).
+        Stating a default (``--option cosamp.gamma=0.25``) is the same
+        comparison as leaving it out. ``method_options`` may grow (a rerun
+        may add methods); a method already in the folder must come back with
+        the same options (:class:`~sparselt.storage.folder.ExperimentFolder`'s
+        ``growable`` identity keys).
         """
-        record = {key: value for key, value in self.record().items() if key not in EXTENSIBLE}
-        record.update(self.method_options())
+        record = {key: value for key, value in self.record().items() if key not in EXTENSIBLE + ("options",)}
+        record["method_options"] = {name: options.record() for name, options in self.resolved_options().items()}
         return record
 
-    def method_options(self):
-        """The methods' options with their defaults resolved (see :meth:`identity`)."""
-        from ..methods.cosamp_reconstruction import DEFAULT_GAMMA
-        from ..methods.guided import DEFAULT_DEFENSIVE, DEFAULT_MAP_SPP
-        from ..methods.sft_reconstruction import DEFAULT_ALPHA, DEFAULT_SNR
 
-        def given(value, default):
-            return default if value is None else value
+def resolve_run_options(methods, options, grid_shape):
+    """``{method: MethodOptions}`` for ``methods`` from ``{method or '*': {name: value}}`` (see
+    :meth:`ComparisonConfig.resolved_options`).
 
-        return {"gamma": float(given(self.gamma, DEFAULT_GAMMA)), "sparsity": self.sparsity,
-                "thesis_faithful": bool(self.thesis_faithful), "map_spp": int(given(self.map_spp, DEFAULT_MAP_SPP)),
-                "defensive": float(given(self.defensive, DEFAULT_DEFENSIVE)),
-                "guiding_mode": given(self.guiding_mode, "per-pixel"), "alpha": float(given(self.alpha, DEFAULT_ALPHA)),
-                "sft_snr": float(given(self.sft_snr, DEFAULT_SNR))}
+    Options for a registered method that is not in this run, and ``'*'``
+    options that no method of this run declares, are not used (a rerun with
+    fewer methods keeps the same options); a method name that is not
+    registered, or a ``'*'`` option no registered method declares, is a
+    typo and refused.
+    """
+    from ..methods import method_names
+
+    if not isinstance(options, dict) or not all(isinstance(values, dict) for values in options.values()):
+        raise TypeError(f"options must map a method name (or '*') to {{option: value}}, got {options!r}")
+    for name in options:
+        if name != "*":
+            get_method(name)  # an unknown name is refused, listing the registered ones
+    everywhere = {key.replace("-", "_"): value for key, value in options.get("*", {}).items()}
+    declared_anywhere = {item.name for name in method_names() for item in get_method(name).Options.declared()}
+    unknown = sorted(set(everywhere) - declared_anywhere)
+    if unknown:
+        raise ValueError(f"option '*.{unknown[0]}' is declared by no registered method ('sparselt methods NAME' lists "
+                         "a method's options)")
+    resolved = {}
+    for name in methods:
+        method = get_method(name)
+        declared = {item.name for item in method.Options.declared()}
+        given = {key: value for key, value in everywhere.items() if key in declared}
+        given.update(options.get(name, {}))
+        resolved[name] = resolve_options(method.Options, given, grid_shape=tuple(grid_shape), owner=name)
+    return resolved
 
 
 @dataclass
 class ComparisonResult:
-    """Rows of ``results.csv`` (dicts) and the paths written."""
+    """Rows of ``results.csv`` (dicts), the paths written, and every method's record (roles, options)."""
 
     rows: list
     out: str
     reference: dict = field(default_factory=dict)
     overhead_fraction: float = 0.0
+    methods: dict = field(default_factory=dict)
 
     def table(self):
         return results_table(self.rows)
@@ -239,22 +265,7 @@ def validate_config(config):
         if method.needs_resolution_multiple and any(r % s for r, s in zip(resolution, config.shape[:2])):
             raise ValueError(f"method {method.name!r} needs --resolution to be a multiple of the shape's image axes "
                              f"{tuple(config.shape[:2])}; got {resolution}")
-    if config.map_spp is not None:
-        check_integer("map spp", config.map_spp, 1, 2**16 - 1)
-    if config.sparsity is not None:
-        check_integer("sparsity (K)", config.sparsity, 1, math.prod(config.shape) // 2)
-    if config.gamma is not None:
-        check_positive_finite(config.gamma, "gamma")
-    if config.alpha is not None:
-        check_positive_finite(config.alpha, "alpha")
-        if config.alpha < 1:
-            raise ValueError(f"alpha must be at least 1 (B = alpha K buckets), got {config.alpha!r}")
-    if config.sft_snr is not None and not (isinstance(config.sft_snr, (int, float)) and math.isfinite(config.sft_snr)):
-        raise ValueError(f"sft snr must be a finite number of dB, got {config.sft_snr!r}")
-    if config.defensive is not None and not (isinstance(config.defensive, (int, float)) and 0 <= config.defensive <= 1):
-        raise ValueError(f"defensive must be in [0, 1], got {config.defensive!r}")
-    if config.guiding_mode not in (None, "per-pixel", "global"):
-        raise ValueError(f"guiding mode must be 'per-pixel' or 'global', got {config.guiding_mode!r}")
+    config.resolved_options()  # every method's options, checked before anything runs
     check_wavefront(resolution, max(config.spps))
     check_reference_spp(resolution, config.reference_spp)
     if min(resolution) < 11:
@@ -394,9 +405,9 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     load_seconds = time.perf_counter() - load_start
     layout = _check_layout(config, loaded.camera.thin_lens, spec.hide_emitters)
     context = ComparisonContext(scene=loaded, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
-                                resolution=config.output_resolution, max_depth=config.max_depth,
-                                options=config.method_options())
+                                resolution=config.output_resolution, max_depth=config.max_depth)
     methods = [get_method(name) for name in config.methods]  # their kinds were checked by validate_config
+    options = config.resolved_options()
 
     with folder.open():
         record = folder.read_json(CONFIG_FILE) if folder.exists(CONFIG_FILE) else {}
@@ -408,6 +419,8 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         record["provenance"] = environment_record()  # this command's; the manifest keeps every command's
         record["method_descriptions"] = dict(record.get("method_descriptions", {}),
                                              **{method.name: method.description for method in methods})
+        record["methods"] = dict(record.get("methods", {}), **{
+            method.name: method_record(method, options[method.name]) for method in methods})
         record.setdefault("warm_up_seconds", {})
         record["relmse_epsilon"] = RELMSE_EPSILON
         record["hide_emitters"] = spec.hide_emitters
@@ -435,27 +448,33 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
                      if folder.cell(cell_name(method.name, spp, seed)) is None]
             if not cells:
                 continue
+            method_context = context.with_options(options[method.name])
             warm_start = time.perf_counter()
-            method.warm_up(context)
+            method.warm_up(method_context)
             record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
             method_seconds += record["warm_up_seconds"][method.name]
             for spp, seed in cells:
+                budget = Budget(spp=spp, seed=seed)
                 run_start = time.perf_counter()
-                result = method.run(context, Budget(spp=spp, seed=seed))
-                method_seconds += time.perf_counter() - run_start
-                row = _row(method.name, spp, seed, result, reference, mask)
+                result = method.run(method_context, budget)
+                wall = time.perf_counter() - run_start
+                method_seconds += wall
+                seconds = check_result(method, result, method_context, budget, wall_seconds=wall)
+                row = _row(method.name, spp, seed, result, seconds, reference, mask)
                 name = cell_name(method.name, spp, seed)
                 folder.write_image(f"{IMAGES}/{name}", result.image, exposure=exposure)
-                folder.record_cell(name, {"row": row, "details": result.details, "seconds": result.seconds})
+                folder.record_cell(name, {"row": row, "details": result.details, "seconds": seconds,
+                                          "options": options[method.name].record(), "wall_seconds": wall})
                 if progress:
                     print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
                           f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, "
                           f"luminance x{row['luminance_ratio']:.3f}", file=sys.stderr)
 
         rows = _load_rows(folder, record["config"]["methods"])
-        add_equal_time_columns(rows)
+        add_equal_time_columns(rows, baseline=baseline_name())
         report_start = time.perf_counter()
-        write_comparison_outputs(folder, rows, reference, config, spec.name, epsilon=RELMSE_EPSILON,
+        write_comparison_outputs(folder, rows, reference, config, spec.name, methods=record["methods"],
+                                 epsilon=RELMSE_EPSILON,
                                  image_of=lambda row: np.load(folder.path_of(
                                      f"{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy")),
                                  provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
@@ -470,23 +489,28 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         folder.write_json(CONFIG_FILE, record)
         folder.complete(seconds=record["seconds"])
     return ComparisonResult(rows=rows, out=folder.path, reference=record["reference"],
-                            overhead_fraction=record["harness_overhead_fraction"])
+                            overhead_fraction=record["harness_overhead_fraction"], methods=record["methods"])
+
+
+def method_record(method, options):
+    """What ``compare.json`` and the reports know of a method: description, roles, source, resolved options."""
+    from ..methods.registry import method_source
+
+    return dict(description=method.description, source=method_source(method.name), options=options.record(),
+                **method.roles())
 
 
 def comparison_folder(config, spec, out, *, overwrite=False):
     """The :class:`~sparselt.storage.folder.ExperimentFolder` of a comparison: its identity is the configuration
     (defaults explicit, without the lists a rerun may extend) and the scene's content identity."""
     return ExperimentFolder(out, kind="compare", identity=config.identity(), scene=scene_identity(spec),
-                            overwrite=overwrite)
+                            overwrite=overwrite, growable=("method_options",))
 
 
-def _row(name, spp, seed, result, reference, mask=None):
-    seconds = {phase: float(result.seconds.get(phase, 0.0)) for phase in TIME_PHASES}
+def _row(name, spp, seed, result, seconds, reference, mask=None):
     row = {"method": name, "spp": spp, "seed": seed, "seconds_total": sum(seconds.values())}
-    row.update({f"seconds_{phase}": value for phase, value in seconds.items()})
+    row.update({f"seconds_{phase}": seconds[phase] for phase in TIME_PHASES})
     row["path_samples"] = int(result.path_samples)
-    if not np.all(np.isfinite(result.image)):
-        raise ValueError(f"method {name!r} produced NaN or infinite pixels at spp {spp}, seed {seed}")
     row.update(quality(result.image, reference, mask))
     return row
 

@@ -18,7 +18,7 @@ import numpy as np
 from ..report.comparison_rows import mean_curve
 
 
-def add_equal_time_columns(rows):
+def add_equal_time_columns(rows, *, baseline="pt"):
     """Add ``relmse_pt_equal_time`` and ``ssim_pt_equal_time`` to every row: PT's quality at the row's time.
 
     Parameters
@@ -26,6 +26,8 @@ def add_equal_time_columns(rows):
     rows : list of dict
         A comparison's rows (``method``, ``spp``, ``seconds_total``,
         ``relmse``, ``ssim``); changed in place.
+    baseline : str, optional
+        The baseline method's name (the registry's, :func:`sparselt.methods.baseline_name`).
 
     Notes
     -----
@@ -36,13 +38,13 @@ def add_equal_time_columns(rows):
     at fewer than two budgets, and where the row's time lies outside PT's
     measured range: nothing is extrapolated.
     """
-    curves = {quantity: mean_curve([row for row in rows if row["method"] == "pt"], quantity)
+    curves = {quantity: mean_curve([row for row in rows if row["method"] == baseline], quantity)
               for quantity in ("relmse", "ssim")}
     for row in rows:
         for quantity, curve in curves.items():
             key = f"{quantity}_pt_equal_time"
             row[key] = ""
-            if row["method"] == "pt" or len(curve) < 2:
+            if row["method"] == baseline or len(curve) < 2:
                 continue
             times, values = zip(*curve)
             time = row["seconds_total"]

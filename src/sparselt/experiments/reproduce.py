@@ -265,11 +265,12 @@ def _sft_maps(scale, folder, progress):
     config = ComparisonConfig(
         scene="cornell-caustics", kind="path", shape=(16, 16) + (4,) * 8 if quick else (100, 100) + (4,) * 8,
         resolution=(64, 64) if quick else (thesis_size, thesis_size), methods=("pt", "guided-sft"),
-        spps=(16, 64) if quick else (thesis_spp,), reference_spp=1024 if quick else 16384, map_spp=1,
-        guiding_mode="global")
+        spps=(16, 64) if quick else (thesis_spp,), reference_spp=1024 if quick else 16384,
+        options={"guided-sft": {"map_spp": 1, "mode": "global"}})
     out = os.path.join(folder, "maps")
     result = compare(config, out, progress=progress, overwrite=True)
-    section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics")
+    section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics",
+                                 methods=result.methods)
     rows = [(f"{size}x{size}", [f"{values[0]}", "-", f"{values[1]}", "-", f"{values[2]}", "-"])
             for size, values in thesis[2].items()]
     width = config.output_resolution[0]
@@ -286,44 +287,76 @@ def _sft_maps(scale, folder, progress):
     return section
 
 
-def chapter_8(scale, folder, progress):
-    """Tables 8.1/8.2 and Figures 8.1-8.4: the CoSaMP pipeline against PT at equal time (`sparselt compare`)."""
+CHAPTER_8_METHODS = ("pt", "samples-mean", "cosamp", "cosamp-thesis", "bilateral", "cosamp-bilateral", "oidn",
+                     "guided-cosamp", "guided-bilateral")
+
+
+def chapter_8(scale, folder, progress, plugin_methods=()):
+    """Tables 8.1/8.2 and Figures 8.1-8.4: the CoSaMP pipeline against PT at equal time (`sparselt compare`).
+
+    ``plugin_methods`` (from ``--plugin``) run beside the thesis's methods, at
+    the same budgets, timed and reported the same way.
+    """
     from ..report.comparison import THESIS_TABLES, comparison_section
     from .compare import ComparisonConfig, compare
 
     quick = scale == "quick"
     config = ComparisonConfig(
         scene="dof-sculptures", kind="dof", shape=(64, 64, 8, 8) if quick else (250, 250, 16, 16),
-        methods=("pt", "samples-mean", "cosamp", "cosamp-thesis", "bilateral", "cosamp-bilateral", "oidn",
-                 "guided-cosamp", "guided-bilateral"),
+        methods=CHAPTER_8_METHODS + tuple(plugin_methods),
         spps=(16, 40) if quick else tuple(THESIS_TABLES["dof-sculptures"][2]),  # Table 8.1's spp
-        reference_spp=256 if quick else 4096, gamma=0.25)
+        reference_spp=256 if quick else 4096, options={"*": {"gamma": 0.25}})
     out = os.path.join(folder, "compare")
     result = compare(config, out, progress=progress, overwrite=True)
-    return comparison_section(out, "chapter8/compare", result.rows, config, "dof-sculptures",
+    return comparison_section(out, "chapter8/compare", result.rows, config, "dof-sculptures", methods=result.methods,
                               title="Chapter 8: CoSaMP reconstruction, filtering and the equal-time comparison")
+
+
+def plugin_methods_for_chapter_8(plugins):
+    """The plug-in modules' methods that can run in chapter 8's comparison (depth of field); load them first.
+
+    Returns
+    -------
+    runnable : tuple of str
+        Methods of the plug-ins that support kind ``dof``.
+    skipped : tuple of str
+        Their other methods (another kind only).
+    """
+    from ..methods import get_method, load_plugins
+
+    added = load_plugins(plugins)
+    runnable = tuple(name for name in added if "dof" in get_method(name).kinds)
+    return runnable, tuple(name for name in added if name not in runnable)
 
 
 RUNNERS = {"4": chapter_4, "5": chapter_5, "6": chapter_6, "7": chapter_7, "8": chapter_8}
 
 
-def reproduce(chapter, scale, out, *, progress=True, overwrite=False):
+def reproduce(chapter, scale, out, *, progress=True, overwrite=False, plugins=()):
     """Run the chapters' experiments into ``out`` and write ``out/index.html``; return its path.
 
     ``out`` is an :class:`~sparselt.storage.folder.ExperimentFolder` whose
-    identity is the scale: chapters may be added by later runs, but a folder
-    of the other scale is refused (``overwrite`` replaces it), so quick and
-    thesis-scale results never mix. Each chapter is a cell; its experiments
-    live in ``chapterN/``, each in its own folder or signal store.
+    identity is the scale (and the plug-in methods, when any): chapters may
+    be added by later runs, but a folder of the other scale is refused
+    (``overwrite`` replaces it), so quick and thesis-scale results never mix.
+    Each chapter is a cell; its experiments live in ``chapterN/``, each in
+    its own folder or signal store.
+
+    ``plugins`` are modules (``--plugin``) whose methods join chapter 8's
+    equal-time comparison (those that support depth of field).
 
     Raises
     ------
     ValueError
         Unknown chapter or scale, a folder of another scale or holding foreign
-        files, before anything runs.
+        files, a plug-in that cannot be used, before anything runs.
     """
     chapters = _check(chapter, scale)
-    folder = ExperimentFolder(out, kind="reproduce", identity={"scale": scale}, overwrite=overwrite)
+    extra, skipped = plugin_methods_for_chapter_8(plugins)
+    identity = {"scale": scale}
+    if extra:
+        identity["plugin_methods"] = sorted(extra)
+    folder = ExperimentFolder(out, kind="reproduce", identity=identity, overwrite=overwrite)
     folder.inspect()
     if scale == "thesis":
         hours = sum(THESIS_HOURS[number] for number in chapters)
@@ -331,6 +364,8 @@ def reproduce(chapter, scale, out, *, progress=True, overwrite=False):
               + ", ".join(f"{number}: {THESIS_HOURS[number]:g} h" for number in chapters)
               + "); rerun the same command to resume after an interruption", flush=True)
     say = print if progress else (lambda *arguments, **options: None)
+    if skipped:
+        say(f"reproduce: plug-in methods {', '.join(skipped)} do not support depth of field (chapter 8): not run")
     sections = []
     started = time.perf_counter()
     with folder.open():
@@ -346,7 +381,9 @@ def reproduce(chapter, scale, out, *, progress=True, overwrite=False):
                 else:
                     chapter_folder = folder.claim_folder(f"chapter{number}")
                     start = time.perf_counter()
-                    section = RUNNERS[number](scale, chapter_folder, False)
+                    # Only chapter 8 runs a general equal-time comparison that other methods can join.
+                    extras = {"plugin_methods": extra} if number == "8" and extra else {}
+                    section = RUNNERS[number](scale, chapter_folder, False, **extras)
                     section.seconds = time.perf_counter() - start
                     folder.record_cell(f"chapter{number}", {"scale": scale, "section": asdict(section)})
                     sections.append(section)

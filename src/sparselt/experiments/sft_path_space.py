@@ -36,7 +36,8 @@ from ..checks import check_integer, check_positive_finite
 from ..images import reference_exposure
 from ..methods.base import Budget, ComparisonContext
 from ..methods.registry import get_method
-from ..methods.sft_reconstruction import reconstruct
+from ..methods.options import resolve_options
+from ..methods.sft_reconstruction import SftOptions, reconstruct
 from ..provenance import environment_record
 from ..recovery.path_space import largest_energy_fraction
 from ..rendering import mitsuba_backend
@@ -158,7 +159,7 @@ def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
     from ..rendering.baseline import cached_reference
 
     resolution = tuple(config.shape[:2])
-    options = {"sparsity": sparsity, "sft_snr": config.snr}
+    given = {"sparsity": sparsity, "snr": config.snr}
     folder.write_json("table61.json", {"config": config.record(), "sparsity": sparsity,
                                        "relmse_epsilon": RELMSE_EPSILON, "provenance": environment_record()})
     reference, reference_record = cached_reference(scene, config.kind, spp=config.reference_spp,
@@ -167,7 +168,7 @@ def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
     folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
     pt = get_method("pt")
     base = ComparisonContext(scene=scene, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
-                             resolution=resolution, max_depth=config.max_depth, options=options)
+                             resolution=resolution, max_depth=config.max_depth)
     pt.warm_up(base)
     pixels = resolution[0] * resolution[1]
     pt_rate = _pt_rate(pt, base, pixels, config.seed)
@@ -184,9 +185,8 @@ def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
             continue
         say(f"table61: SFT alpha {alpha:g}, {spp} path samples per lattice point, K = {sparsity} of "
             f"N = {math.prod(config.shape)}")
-        context = ComparisonContext(scene=scene, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
-                                    resolution=resolution, max_depth=config.max_depth,
-                                    options=dict(options, alpha=alpha))
+        options = resolve_options(SftOptions, dict(given, alpha=alpha), grid_shape=config.shape, owner="sft")
+        context = base.with_options(options)
         start = time.perf_counter()
         result = reconstruct(context, spp, config.seed)
         image = result.image()

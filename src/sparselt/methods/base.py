@@ -11,11 +11,13 @@ the harness.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import measurement
+from .options import MethodOptions, resolve_options
 
 TIME_PHASES = ("sampling", "reconstruction", "integration", "other")
 WARM_UP_SEED = 0xFFFF_FFFF  # never a comparison seed (those are < 2**32 - 1)
@@ -74,8 +76,10 @@ class ComparisonContext:
         Output image ``(width, height)``.
     max_depth : int
         Longest path (Mitsuba's convention).
-    options : dict
-        Method options (``gamma``, ``sparsity``, ``thesis_faithful``, ...).
+    options : MethodOptions
+        The running method's options, typed and resolved
+        (:class:`~sparselt.methods.options.MethodOptions`): the harness gives
+        each method a context carrying its own (:meth:`with_options`).
     """
 
     scene: object
@@ -84,7 +88,11 @@ class ComparisonContext:
     grid_shape: tuple
     resolution: tuple
     max_depth: int
-    options: dict = field(default_factory=dict)
+    options: MethodOptions = field(default_factory=MethodOptions)
+
+    def with_options(self, options):
+        """This context carrying ``options`` (a method's resolved :class:`MethodOptions`)."""
+        return dataclasses.replace(self, options=options)
 
     @property
     def upscale(self):
@@ -103,18 +111,67 @@ class Method:
     """Base class of comparison methods.
 
     Subclasses set :attr:`name`, :attr:`kinds` (signal kinds they support; the
-    harness refuses others before anything runs),
-    :attr:`description`, optionally :attr:`needs_resolution_multiple` (the
-    output resolution must be a multiple of the grid's image axes), and
-    implement :meth:`run`.
+    harness refuses others before anything runs), :attr:`description`, and
+    implement :meth:`run`. Optional attributes:
+
+    ``Options``
+        A frozen :class:`~sparselt.methods.options.MethodOptions` dataclass
+        declaring the method's options (default: none). The harness
+        validates them before anything runs and passes the resolved object
+        as ``context.options``.
+    ``needs_resolution_multiple``
+        The output resolution must be a multiple of the grid's image axes.
+    ``baseline``
+        The method every other is compared with at equal time (``pt``; one
+        registered method at most).
+    ``family``
+        What kind of method it is, for the reports: ``'path tracing'``,
+        ``'cosamp'`` (the CoSaMP image methods of thesis 8.1, beside Tables
+        8.1/8.2), ``'ablation'``, ``'filter'``, ``'denoiser'``, ``'guided'``
+        (importance sampling from a map, beside Tables 6.2/6.3), ``'sft'``,
+        or any other word for a plug-in.
+    ``thesis_procedure``
+        The method is a procedure of the thesis, as the thesis describes it
+        (rather than a baseline or our own variant).
     """
 
     name = ""
     kinds = ()
     description = ""
+    Options = MethodOptions
     needs_resolution_multiple = False
+    baseline = False
+    family = "other"
+    thesis_procedure = False
 
     warm_up_spp = 1
+
+    @classmethod
+    def roles(cls):
+        """What the reports need to know of the method: ``{baseline, family, thesis_procedure}``."""
+        return {"baseline": bool(cls.baseline), "family": str(cls.family),
+                "thesis_procedure": bool(cls.thesis_procedure)}
+
+    def options_of(self, context):
+        """This method's options from ``context``: the resolved object the harness put there.
+
+        A context built by hand may carry a plain dict (or nothing): it is
+        resolved here, through the one validation of
+        :func:`~sparselt.methods.options.resolve_options`.
+
+        Raises
+        ------
+        TypeError
+            The context carries another method's options object.
+        """
+        options = context.options
+        if isinstance(options, self.Options):
+            return options
+        if isinstance(options, dict) or type(options) is MethodOptions:
+            given = options if isinstance(options, dict) else {}
+            return resolve_options(self.Options, given, grid_shape=context.grid_shape, owner=self.name)
+        raise TypeError(f"method {self.name!r} got options of type {type(options).__name__}, expected "
+                        f"{self.Options.__name__}")
 
     def warm_up(self, context):
         """Compile the renderer's kernels: one run at :attr:`warm_up_spp`, result discarded."""

@@ -55,6 +55,7 @@ machine learning (cross-fitting).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -63,6 +64,7 @@ from ..images import luminance
 from ..operators.partial_fourier import PartialFourier
 from ..recovery.cosamp import cosamp
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
+from .options import MethodOptions, option
 from .pixel_samples import cell_means, draw_pixel_samples
 from .registry import register
 
@@ -80,6 +82,23 @@ CONJUGATE_GRADIENT_STEPS = 3
 def default_sparsity(grid_shape):
     """``K = N / 200`` (thesis 8.1.1), at least 1."""
     return max(1, math.prod(grid_shape) // 200)
+
+
+def _half_the_grid(grid_shape):
+    return max(1, math.prod(grid_shape) // 2)
+
+
+@dataclass(frozen=True)
+class CosampOptions(MethodOptions):
+    """The CoSaMP reconstruction's options, shared by every method that runs it (8.1-8.4)."""
+
+    gamma: float = option(DEFAULT_GAMMA, minimum=0.0, minimum_inclusive=False, section="7.1, 8.1.1",
+                          help="gamma of eq. 7.1 applied to the measurements before recovery and inverted after "
+                               "(thesis: 0.25 depth of field, 0.5 architecture)")
+    sparsity: int | None = option(None, derive=default_sparsity, default_text="N/200", minimum=1,
+                                  maximum=_half_the_grid, maximum_text="N/2", section="8.1.1",
+                                  help="K, the Fourier coefficients CoSaMP keeps (the thesis's expected sparsity "
+                                       "rate 1/200)")
 
 
 def reconstruct_luminance(cells, means, grid_shape, *, gamma, sparsity, dtype=np.float32):
@@ -147,33 +166,24 @@ def chroma(pixel_rgb):
     return ratio
 
 
-def reconstruction_options(context):
-    """``(gamma, K)`` of a comparison: its options, or the defaults (gamma 0.25, K = N / 200)."""
-    gamma = context.options.get("gamma")
-    sparsity = context.options.get("sparsity") or default_sparsity(context.grid_shape)
-    return check_gamma(DEFAULT_GAMMA if gamma is None else gamma), int(sparsity)
-
-
 class _CosampMethod(Method):
     kinds = ("dof", "indirect")
+    family = "cosamp"
     needs_resolution_multiple = True
-    thesis_faithful = False
+    Options = CosampOptions
 
     def warm_up(self, context):
         # The renderer is the only part with kernels to compile; CoSaMP is numpy and FFTs.
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED))
 
-    def options(self, context):
-        gamma, sparsity = reconstruction_options(context)
-        return gamma, sparsity, self.thesis_faithful or bool(context.options.get("thesis_faithful", False))
-
     def run(self, context, budget):
-        gamma, sparsity, faithful = self.options(context)
+        options = self.options_of(context)
         timer = PhaseTimer()
         with timer("sampling"):
             samples = draw_pixel_samples(context, budget)
-        image, details = image_from_samples(samples, context.grid_shape, gamma=gamma, sparsity=sparsity,
-                                            thesis_faithful=faithful, timer=timer)
+        image, details = image_from_samples(samples, context.grid_shape, gamma=options.gamma,
+                                            sparsity=options.sparsity, thesis_faithful=self.thesis_procedure,
+                                            timer=timer)
         return MethodResult(image=image, seconds=timer.seconds, path_samples=samples.values.shape[0],
                             details=details)
 
@@ -272,4 +282,4 @@ class CosampThesis(_CosampMethod):
 
     name = "cosamp-thesis"
     description = "CoSaMP 4-D reconstruction exactly as thesis 8.1.1 (darker, lower contrast)"
-    thesis_faithful = True
+    thesis_procedure = True

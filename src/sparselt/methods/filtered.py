@@ -5,8 +5,9 @@ same seed: :func:`~sparselt.methods.pixel_samples.draw_pixel_samples`), takes
 their per-pixel mean (the path-traced image) and filters it; every second is
 counted: sampling, the AOV pass, CoSaMP, the filter.
 
-Parameters are fixed defaults or derived from the noisy data, never from the
-reference (recorded in each result's details and in ``compare.json``):
+Parameters are declared options with fixed defaults (``sparselt methods
+NAME`` lists them) or derived from the noisy data, never from the reference
+(recorded in each result's details and in ``compare.json``):
 
 - window radius 3 (7x7 pixels), spatial sigma 2 pixels; the ``gaussian``
   method uses sigma 1 pixel on the same window;
@@ -25,22 +26,61 @@ Dammertz et al. (2010), Rousselle et al. (2013). OIDN: Áfra (2019-).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..filters import bilateral, cross_bilateral, gaussian, oidn_denoise
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
-from .cosamp_reconstruction import image_from_samples, reconstruction_options
+from .cosamp_reconstruction import CosampOptions, image_from_samples
+from .options import MethodOptions, option
 from .pixel_samples import draw_pixel_samples, sample_mean_image
 from .registry import register
 
-RADIUS = 3
-SIGMA_SPATIAL = 2.0
-GAUSSIAN_SIGMA = 1.0
-RANGE_NOISE_MULTIPLE = 2.0
-AOV_SPP = 4
-ALBEDO_SIGMA = 0.1
-NORMAL_SIGMA = 0.3
-RELATIVE_DEPTH_SIGMA = 0.1
+MAXIMUM_RADIUS = 32
+
+
+def _radius(default=3):
+    return option(default, minimum=1, maximum=MAXIMUM_RADIUS, section="8.2",
+                  help="filter window radius in pixels (the window is 2 radius + 1 wide)")
+
+
+@dataclass(frozen=True)
+class GaussianOptions(MethodOptions):
+    sigma: float = option(1.0, minimum=0.0, minimum_inclusive=False, help="Gaussian sigma in pixels")
+    radius: int = _radius()
+
+
+@dataclass(frozen=True)
+class BilateralOptions(MethodOptions):
+    """The bilateral filter's options (eq. 8.1-8.2), shared by every bilateral method."""
+
+    radius: int = _radius()
+    sigma_spatial: float = option(2.0, minimum=0.0, minimum_inclusive=False, section="8.2 (eq. 8.1)",
+                                  help="spatial sigma in pixels")
+    range_noise_multiple: float = option(2.0, minimum=0.0, minimum_inclusive=False, section="8.2 (eq. 8.2)",
+                                         help="range sigma in units of the median standard error of the pixel "
+                                              "means (measured on the samples, never on the reference)")
+
+
+@dataclass(frozen=True)
+class AovOptions(MethodOptions):
+    """The feature-buffer pass (Mitsuba's aov integrator), shared by the methods it guides; its time is counted."""
+
+    aov_spp: int = option(4, minimum=1, maximum=1024, help="samples per pixel of the albedo/normal/depth pass")
+
+
+@dataclass(frozen=True)
+class AovBilateralOptions(BilateralOptions, AovOptions):
+    albedo_sigma: float = option(0.1, minimum=0.0, minimum_inclusive=False, help="range sigma of the albedo guide")
+    normal_sigma: float = option(0.3, minimum=0.0, minimum_inclusive=False, help="range sigma of the normal guide")
+    relative_depth_sigma: float = option(0.1, minimum=0.0, minimum_inclusive=False,
+                                         help="range sigma of the depth guide, times the median depth")
+
+
+@dataclass(frozen=True)
+class CosampBilateralOptions(BilateralOptions, CosampOptions):
+    """The bilateral filter's and the CoSaMP reconstruction's options (thesis 8.2)."""
 
 
 def noise_sigma(samples):
@@ -65,69 +105,75 @@ def noise_sigma(samples):
 
 class _FilteredMethod(Method):
     kinds = ("dof", "indirect", "path")
+    family = "filter"
     warm_up_spp = 2  # the noise estimate needs two samples per pixel
 
     def run(self, context, budget):
+        options = self.options_of(context)
         timer = PhaseTimer()
         samples, image = sample_mean_image(context, budget, timer)
-        filtered, details = self.filter(context, budget, samples, image, timer)
+        filtered, details = self.filter(context, options, budget, samples, image, timer)
         details.update(nonfinite_samples=samples.nonfinite)
         return MethodResult(image=np.asarray(filtered, dtype=np.float32), seconds=timer.seconds,
                             path_samples=samples.values.shape[0], details=details)
 
-    def filter(self, context, budget, samples, image, timer):  # pragma: no cover - interface
+    def filter(self, context, options, budget, samples, image, timer):  # pragma: no cover - interface
         raise NotImplementedError
 
 
-def _aov_guides(context, budget, timer):
+def _aov_guides(context, options, budget, timer):
     with timer("sampling"):
-        buffers, _ = context.scene.render_aovs(AOV_SPP, budget.seed)
+        buffers, _ = context.scene.render_aovs(options.aov_spp, budget.seed)
     depth = buffers["depth"]
-    depth_sigma = RELATIVE_DEPTH_SIGMA * float(np.median(depth[depth > 0])) if np.any(depth > 0) else 1.0
+    relative = getattr(options, "relative_depth_sigma", 0.1)
+    depth_sigma = relative * float(np.median(depth[depth > 0])) if np.any(depth > 0) else 1.0
     return buffers, depth_sigma
 
 
 @register
 class GaussianFilter(_FilteredMethod):
     name = "gaussian"
-    description = f"path-traced samples, Gaussian filter sigma {GAUSSIAN_SIGMA} px, radius {RADIUS}"
+    Options = GaussianOptions
+    description = "path-traced samples, Gaussian filter (sigma 1 px, radius 3 by default)"
 
-    def filter(self, context, budget, samples, image, timer):
+    def filter(self, context, options, budget, samples, image, timer):
         with timer("reconstruction"):
-            result = gaussian(image, GAUSSIAN_SIGMA, radius=RADIUS, channel_axis=-1)
-        return result, {"sigma": GAUSSIAN_SIGMA, "radius": RADIUS}
+            result = gaussian(image, options.sigma, radius=options.radius, channel_axis=-1)
+        return result, {"sigma": options.sigma, "radius": options.radius}
 
 
 @register
 class BilateralFilter(_FilteredMethod):
     name = "bilateral"
+    Options = BilateralOptions
     description = ("path-traced samples, bilateral filter (eq. 8.1-8.2): radius 3, sigma_s 2 px, "
-                   "sigma_r 2x the median standard error of the pixel means")
+                   "sigma_r 2x the median standard error of the pixel means (defaults)")
 
-    def filter(self, context, budget, samples, image, timer):
+    def filter(self, context, options, budget, samples, image, timer):
         with timer("reconstruction"):
-            sigma_range = RANGE_NOISE_MULTIPLE * noise_sigma(samples)
-            result = bilateral(image, RADIUS, SIGMA_SPATIAL, sigma_range, channel_axis=-1)
-        return result, {"radius": RADIUS, "sigma_spatial": SIGMA_SPATIAL, "sigma_range": sigma_range}
+            sigma_range = options.range_noise_multiple * noise_sigma(samples)
+            result = bilateral(image, options.radius, options.sigma_spatial, sigma_range, channel_axis=-1)
+        return result, {"radius": options.radius, "sigma_spatial": options.sigma_spatial, "sigma_range": sigma_range}
 
 
 @register
 class CosampBilateral(_FilteredMethod):
     name = "cosamp-bilateral"
     kinds = ("dof", "indirect")
+    Options = CosampBilateralOptions
     needs_resolution_multiple = True
+    thesis_procedure = True
     description = ("thesis 8.2 (eq. 8.3): the path-traced image of the CoSaMP samples, cross-bilateral filtered with "
                    "itself and the CoSaMP reconstruction (thesis procedure) as range guides")
 
-    def filter(self, context, budget, samples, image, timer):
-        gamma, sparsity = reconstruction_options(context)
-        reconstruction, details = image_from_samples(samples, context.grid_shape, gamma=gamma, sparsity=sparsity,
-                                                     thesis_faithful=True, timer=timer)
+    def filter(self, context, options, budget, samples, image, timer):
+        reconstruction, details = image_from_samples(samples, context.grid_shape, gamma=options.gamma,
+                                                     sparsity=options.sparsity, thesis_faithful=True, timer=timer)
         with timer("reconstruction"):
-            sigma_range = RANGE_NOISE_MULTIPLE * noise_sigma(samples)
-            result = cross_bilateral(image, [image, reconstruction], RADIUS, SIGMA_SPATIAL, sigma_range,
-                                     channel_axis=-1)
-        details.update(radius=RADIUS, sigma_spatial=SIGMA_SPATIAL, sigma_range=sigma_range)
+            sigma_range = options.range_noise_multiple * noise_sigma(samples)
+            result = cross_bilateral(image, [image, reconstruction], options.radius, options.sigma_spatial,
+                                     sigma_range, channel_axis=-1)
+        details.update(radius=options.radius, sigma_spatial=options.sigma_spatial, sigma_range=sigma_range)
         return result, details
 
     def warm_up(self, context):
@@ -139,29 +185,33 @@ class CosampBilateral(_FilteredMethod):
 @register
 class AovBilateral(_FilteredMethod):
     name = "aov-bilateral"
+    Options = AovBilateralOptions
     description = ("path-traced samples, joint bilateral guided by the image and the aov integrator's albedo, "
                    "normal and depth (4 spp, timed): radius 3, sigma_s 2 px, sigma_r as 'bilateral', "
-                   "albedo 0.1, normal 0.3, depth 0.1x median depth")
+                   "albedo 0.1, normal 0.3, depth 0.1x median depth (defaults)")
 
-    def filter(self, context, budget, samples, image, timer):
-        buffers, depth_sigma = _aov_guides(context, budget, timer)
+    def filter(self, context, options, budget, samples, image, timer):
+        buffers, depth_sigma = _aov_guides(context, options, budget, timer)
         with timer("reconstruction"):
-            sigma_range = RANGE_NOISE_MULTIPLE * noise_sigma(samples)
-            result = cross_bilateral(image, [image, buffers["albedo"], buffers["normal"], buffers["depth"]], RADIUS,
-                                     SIGMA_SPATIAL, [sigma_range, ALBEDO_SIGMA, NORMAL_SIGMA, depth_sigma],
+            sigma_range = options.range_noise_multiple * noise_sigma(samples)
+            result = cross_bilateral(image, [image, buffers["albedo"], buffers["normal"], buffers["depth"]],
+                                     options.radius, options.sigma_spatial,
+                                     [sigma_range, options.albedo_sigma, options.normal_sigma, depth_sigma],
                                      channel_axis=-1)
-        return result, {"radius": RADIUS, "sigma_spatial": SIGMA_SPATIAL, "sigma_range": sigma_range,
-                        "aov_spp": AOV_SPP, "albedo_sigma": ALBEDO_SIGMA, "normal_sigma": NORMAL_SIGMA,
-                        "depth_sigma": depth_sigma}
+        return result, {"radius": options.radius, "sigma_spatial": options.sigma_spatial, "sigma_range": sigma_range,
+                        "aov_spp": options.aov_spp, "albedo_sigma": options.albedo_sigma,
+                        "normal_sigma": options.normal_sigma, "depth_sigma": depth_sigma}
 
 
 @register
 class OidnDenoiser(_FilteredMethod):
     name = "oidn"
+    family = "denoiser"
+    Options = AovOptions
     description = "path-traced samples denoised by Intel Open Image Denoise (RT, hdr, albedo + normal from a 4 spp aov pass)"
 
-    def filter(self, context, budget, samples, image, timer):
-        buffers, _ = _aov_guides(context, budget, timer)
+    def filter(self, context, options, budget, samples, image, timer):
+        buffers, _ = _aov_guides(context, options, budget, timer)
         with timer("reconstruction"):
             result = oidn_denoise(image, buffers["albedo"], buffers["normal"])
-        return result, {"aov_spp": AOV_SPP, "denoiser": "pyoidn RT hdr, albedo + normal"}
+        return result, {"aov_spp": options.aov_spp, "denoiser": "pyoidn RT hdr, albedo + normal"}

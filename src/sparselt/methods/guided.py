@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -45,9 +46,11 @@ from ..filters import cross_bilateral
 from ..guiding import ImportanceMap
 from ..images import luminance
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
-from .cosamp_reconstruction import reconstruct_luminance, reconstruction_options
+from .cosamp_reconstruction import CosampOptions, reconstruct_luminance
+from .options import MethodOptions, option
 from .pixel_samples import cell_means, draw_pixel_samples
 from .registry import register
+from .sft_reconstruction import SftOptions, reconstruct
 
 DEFAULT_MAP_SPP = 16
 DEFAULT_DEFENSIVE = 0.1
@@ -58,15 +61,29 @@ MODES = ("per-pixel", "global")
 BILATERAL_RADIUS = (2, 2, 1, 1)
 
 
-def guiding_options(context):
-    """``(map_spp, defensive, mode)`` of a comparison, with the defaults."""
-    map_spp = int(context.options.get("map_spp") or DEFAULT_MAP_SPP)
-    defensive = context.options.get("defensive")
-    defensive = DEFAULT_DEFENSIVE if defensive is None else float(defensive)
-    mode = context.options.get("guiding_mode") or "per-pixel"
-    if mode not in MODES:
-        raise ValueError(f"guiding mode must be one of {', '.join(MODES)}, got {mode!r}")
-    return map_spp, defensive, mode
+@dataclass(frozen=True)
+class GuidingOptions(MethodOptions):
+    """The pilot pass and the mixture, shared by every guided method (thesis 6.2.1, 8.3)."""
+
+    map_spp: int = option(DEFAULT_MAP_SPP, minimum=1, maximum=2**16 - 1, section="6.2.1, 8.3",
+                          help="pilot path samples per map cell of the image plane (counted in the budget)")
+    mode: str = option("per-pixel", choices=MODES, section="6.2.1",
+                       help="per-pixel: every pixel keeps its spp, the map guides the other axes; global: cells "
+                            "drawn over the image plane too")
+    defensive: float = option(DEFAULT_DEFENSIVE, minimum=0.0, maximum=1.0, section="6.2.1",
+                              help="weight of the uniform density in the mixture (in per-pixel mode the pilot, "
+                                   "CoSaMP and bilateral maps choose it per image cell by cross-validation on the "
+                                   "pilot instead)")
+
+
+@dataclass(frozen=True)
+class GuidedCosampOptions(GuidingOptions, CosampOptions):
+    """A guided method whose map is a CoSaMP reconstruction (8.3, 8.4)."""
+
+
+@dataclass(frozen=True)
+class GuidedSftOptions(GuidingOptions, SftOptions):
+    """A guided method whose map is the SFT reconstruction (6.2)."""
 
 
 def render_with_map(context, importance, budget, mode):
@@ -78,25 +95,27 @@ def render_with_map(context, importance, budget, mode):
 
 class _GuidedMethod(Method):
     kinds = ("dof", "indirect", "path")
+    family = "guided"
     needs_resolution_multiple = True
+    Options = GuidingOptions
 
     def warm_up(self, context):
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), resolution=tuple(context.grid_shape[:2]))
         uniform = ImportanceMap(np.ones(context.grid_shape), defensive=1.0)
-        _, _, mode = guiding_options(context)
-        render_with_map(context, uniform, Budget(spp=1, seed=WARM_UP_SEED), mode)
+        render_with_map(context, uniform, Budget(spp=1, seed=WARM_UP_SEED), self.options_of(context).mode)
 
     def run(self, context, budget):
-        map_spp, defensive, mode = guiding_options(context)
+        options = self.options_of(context)
+        map_spp, defensive, mode = options.map_spp, options.defensive, options.mode
         timer = PhaseTimer()
         with timer("sampling"):
             pilot = draw_pixel_samples(context, Budget(spp=map_spp, seed=budget.seed ^ 0x5A5A5A5A),
                                        resolution=tuple(context.grid_shape[:2]))
         with timer("other"):
             cells, means, _ = cell_means(pilot, math.prod(context.grid_shape))
-        values, details = self.map_values(context, cells, means, timer)
+        values, details = self.map_values(context, options, cells, means, timer)
         if mode == "per-pixel" and map_spp >= 2:
-            weights = self.select_defensive(context, pilot, timer)
+            weights = self.select_defensive(context, options, pilot, timer)
             with timer("other"):
                 importance = ImportanceMap(mixed_conditionals(values, weights), defensive=0.0)
             details.update(defensive_weights="per image cell, cross-validated", mean_defensive=float(weights.mean()),
@@ -113,7 +132,7 @@ class _GuidedMethod(Method):
         return MethodResult(image=image, seconds=timer.seconds,
                             path_samples=int(pilot.values.shape[0]) + width * height * budget.spp, details=details)
 
-    def select_defensive(self, context, pilot, timer):
+    def select_defensive(self, context, options, pilot, timer):
         """The defensive weight of each image cell, chosen on the pilot's own samples (no reference).
 
         The pilot's samples split in two folds; the map built from one fold is
@@ -138,7 +157,7 @@ class _GuidedMethod(Method):
             with timer("other"):
                 train, test = pilot.fold(fold), pilot.fold(1 - fold)
                 cells, means, _ = cell_means(train, math.prod(context.grid_shape))
-            values, _ = self.map_values(context, cells, means, timer)
+            values, _ = self.map_values(context, options, cells, means, timer)
             with timer("other"):
                 conditional = _conditionals(values, image_cells, rest)
                 level = luminance(test.values).astype(np.float64)
@@ -161,7 +180,7 @@ class _GuidedMethod(Method):
         choice = np.where(np.isfinite(score[np.arange(image_cells), best]), np.asarray(candidates)[best], 1.0)
         return choice
 
-    def map_values(self, context, cells, means, timer):  # pragma: no cover - interface
+    def map_values(self, context, options, cells, means, timer):  # pragma: no cover - interface
         raise NotImplementedError
 
 
@@ -198,7 +217,7 @@ class GuidedPilot(_GuidedMethod):
     name = "guided-pilot"
     description = "guided by the raw pilot cell means (the ablation), defensive mixture"
 
-    def map_values(self, context, cells, means, timer):
+    def map_values(self, context, options, cells, means, timer):
         with timer("other"):
             return _scatter(cells, means, context.grid_shape), {"map": "pilot"}
 
@@ -207,10 +226,12 @@ class GuidedPilot(_GuidedMethod):
 class GuidedCosamp(_GuidedMethod):
     name = "guided-cosamp"
     kinds = ("dof", "indirect", "path")
+    Options = GuidedCosampOptions
+    thesis_procedure = True
     description = "guided by the CoSaMP reconstruction of the pilot (thesis 8.3), defensive mixture"
 
-    def map_values(self, context, cells, means, timer):
-        gamma, sparsity = reconstruction_options(context)
+    def map_values(self, context, options, cells, means, timer):
+        gamma, sparsity = options.gamma, options.sparsity
         with timer("reconstruction"):
             reconstruction, result = reconstruct_luminance(cells, means, context.grid_shape, gamma=gamma,
                                                            sparsity=sparsity)
@@ -222,11 +243,13 @@ class GuidedCosamp(_GuidedMethod):
 class GuidedBilateral(_GuidedMethod):
     name = "guided-bilateral"
     kinds = ("dof", "indirect")
+    Options = GuidedCosampOptions
+    thesis_procedure = True
     description = ("guided by the pilot filtered in 4-D with the CoSaMP reconstruction as range guide (thesis 8.4), "
                    "defensive mixture")
 
-    def map_values(self, context, cells, means, timer):
-        gamma, sparsity = reconstruction_options(context)
+    def map_values(self, context, options, cells, means, timer):
+        gamma, sparsity = options.gamma, options.sparsity
         with timer("reconstruction"):
             reconstruction, result = reconstruct_luminance(cells, means, context.grid_shape, gamma=gamma,
                                                            sparsity=sparsity)
@@ -248,36 +271,33 @@ class GuidedSft(_GuidedMethod):
 
     name = "guided-sft"
     kinds = ("dof", "indirect", "path")
+    Options = GuidedSftOptions
+    thesis_procedure = True
     description = ("guided by the Sparse Fourier Transform reconstruction over the map grid (thesis 6.2; "
-                   "--map-spp path samples per lattice point, K = N/10^4, --alpha), defensive mixture; "
+                   "map_spp path samples per lattice point, K = N/10^4 by default), defensive mixture; "
                    "the SFT's samples and time are counted")
 
     def warm_up(self, context):
         super().warm_up(context)
-        from .sft_reconstruction import reconstruct
-
-        small = dict(context.options, sparsity=1)
-        reconstruct(dataclasses.replace(context, options=small), 1, WARM_UP_SEED)
+        small = dataclasses.replace(self.options_of(context), sparsity=1)
+        reconstruct(context, 1, WARM_UP_SEED, small)
 
     def run(self, context, budget):
-        from .sft_reconstruction import reconstruct, sft_options
-
-        map_spp, defensive, mode = guiding_options(context)
+        options = self.options_of(context)
         timer = PhaseTimer()
-        result = reconstruct(context, map_spp, budget.seed ^ 0x5A5A5A5A)
+        result = reconstruct(context, options.map_spp, budget.seed ^ 0x5A5A5A5A, options)
         timer.seconds["sampling"] += result.seconds["sampling"]
         timer.seconds["reconstruction"] += result.seconds["reconstruction"]
         with timer("reconstruction"):
             values = luminance(result.signal()).astype(np.float64)  # eq. 6.3: pdf proportional to R, negatives clamped
         with timer("other"):
-            importance = ImportanceMap(values, defensive=defensive, clamp_negative=True)
+            importance = ImportanceMap(values, defensive=options.defensive, clamp_negative=True)
         with timer("sampling"):
-            image, nonfinite = render_with_map(context, importance, budget, mode)
+            image, nonfinite = render_with_map(context, importance, budget, options.mode)
         width, height = context.resolution
-        sparsity, alpha, snr = sft_options(context)
-        details = {"map": "sft", "map_spp": map_spp, "mode": mode, "defensive": defensive, "sparsity": sparsity,
-                   "alpha": alpha, "snr_db": snr, "map_samples": result.path_samples,
-                   "support_samples": result.support_samples, "magnitude_samples": result.magnitude_samples,
-                   "nonfinite_samples": nonfinite + result.nonfinite}
+        details = {"map": "sft", "map_spp": options.map_spp, "mode": options.mode, "defensive": options.defensive,
+                   "sparsity": options.sparsity, "alpha": options.alpha, "snr_db": options.snr,
+                   "map_samples": result.path_samples, "support_samples": result.support_samples,
+                   "magnitude_samples": result.magnitude_samples, "nonfinite_samples": nonfinite + result.nonfinite}
         return MethodResult(image=image, seconds=timer.seconds,
                             path_samples=result.path_samples + width * height * budget.spp, details=details)

@@ -17,6 +17,8 @@ class PathTracing(Method):
     """
 
     name = "pt"
+    baseline = True
+    family = "path tracing"
     kinds = ("dof", "indirect", "path", "path-indirect")
     description = "path tracing: Mitsuba's path integrator (the kind's own estimator for 'indirect', 'path-indirect')"
 

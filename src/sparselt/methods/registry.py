@@ -1,22 +1,188 @@
-"""The registry of comparison methods: name -> :class:`~sparselt.methods.base.Method` instance."""
+"""The registry of comparison methods: name -> :class:`~sparselt.methods.base.Method` instance, built-ins and plug-ins.
+
+Built-in methods register when :func:`method_names` or :func:`get_method` is
+first called. Plug-ins add theirs in two ways, both through :func:`register`:
+
+- an installed distribution's entry point in the group ``sparselt.methods``
+  (``[project.entry-points."sparselt.methods"] mine = "my_package.methods"``):
+  the module is imported, its decorated classes register;
+- :func:`load_plugins` (``--plugin MODULE`` on ``compare``, ``methods`` and
+  ``reproduce``): a module on the Python path.
+
+Every class is checked against the contract when it registers
+(:func:`check_method_class`); a name clash, a module that fails to import, or
+a class that breaks the contract raises :class:`PluginError`, one line that
+names the plug-in.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import importlib
+import importlib.metadata
+import re
+
+from ..rendering.layout import KINDS
+from .options import declared_options
+
+#: The entry-point group plug-in distributions declare their method modules in.
+ENTRY_POINT_GROUP = "sparselt.methods"
+#: A method name: lower case words joined by dashes (it names files and ``--option METHOD.NAME``).
+NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9-]*$")
+
 _METHODS = {}
+_SOURCES = {}
+_LOADING = []  # the plug-in being imported, innermost last
+_STATE = {"builtin": False, "entry_points": False}
+
+
+class PluginError(ValueError):
+    """A plug-in that cannot be used: its module fails to import, a name clash, or a broken contract."""
+
+
+def _source(cls):
+    return _LOADING[-1] if _LOADING else cls.__module__
+
+
+def check_method_class(cls, source=None):
+    """Refuse a method class that breaks the contract of :class:`~sparselt.methods.base.Method`.
+
+    Checked: a subclass of ``Method``; ``name`` matching :data:`NAME_PATTERN`;
+    ``kinds`` a non-empty tuple of signal kinds; ``run`` implemented;
+    ``Options`` a frozen :class:`MethodOptions` dataclass whose defaults are
+    valid; ``baseline`` and ``thesis_procedure`` booleans; ``family`` text.
+
+    Raises
+    ------
+    PluginError
+        One line naming ``source`` (the plug-in) and what is wrong.
+    """
+    from .base import Method
+
+    where = f"plug-in {source or getattr(cls, '__module__', '?')!r}"
+    label = getattr(cls, "__qualname__", repr(cls))
+    if not (isinstance(cls, type) and issubclass(cls, Method)):
+        raise PluginError(f"{where}: {label} is not a subclass of sparselt.methods.Method")
+    name = cls.name
+    if not isinstance(name, str) or not NAME_PATTERN.match(name):
+        raise PluginError(f"{where}: {label}.name must be lower-case words joined by dashes (it names files and "
+                          f"--option METHOD.NAME), got {name!r}")
+    kinds = cls.kinds
+    if isinstance(kinds, str) or not isinstance(kinds, (tuple, list)) or not kinds or any(
+            kind not in KINDS for kind in kinds):
+        raise PluginError(f"{where}: method {name!r} declares kinds {kinds!r}; kinds must be a non-empty tuple of "
+                          f"{', '.join(KINDS)}")
+    if cls.run is Method.run or not callable(cls.run):
+        raise PluginError(f"{where}: method {name!r} does not implement run(context, budget)")
+    try:
+        declared = declared_options(cls.Options)
+    except TypeError as error:
+        raise PluginError(f"{where}: method {name!r}: {error}") from None
+    for item in declared:
+        if item.derive is None and not callable(item.maximum):
+            try:
+                item.resolve(item.default, (), name)
+            except (TypeError, ValueError) as error:
+                raise PluginError(f"{where}: method {name!r}: the default of {item.name!r} is refused: "
+                                  f"{error}") from None
+    for attribute in ("baseline", "thesis_procedure", "needs_resolution_multiple"):
+        if not isinstance(getattr(cls, attribute), bool):
+            raise PluginError(f"{where}: method {name!r}: {attribute} must be True or False, got "
+                              f"{getattr(cls, attribute)!r}")
+    if not isinstance(cls.family, str) or not cls.family:
+        raise PluginError(f"{where}: method {name!r}: family must be a word such as 'filter', got {cls.family!r}")
+    if not isinstance(cls.description, str):
+        raise PluginError(f"{where}: method {name!r}: description must be text")
 
 
 def register(cls):
-    """Class decorator: register one instance of a :class:`Method` subclass under ``cls.name``."""
-    if not cls.name or cls.name in _METHODS:
-        raise ValueError(f"method name {cls.name!r} is empty or already registered")
-    _METHODS[cls.name] = cls()
+    """Class decorator: check ``cls`` against the contract and register one instance under ``cls.name``.
+
+    Raises
+    ------
+    PluginError
+        The contract is broken (:func:`check_method_class`), the name is
+        taken (the message names both sources), or a second baseline.
+    """
+    source = _source(cls)
+    check_method_class(cls, source)
+    if cls.name in _METHODS:
+        raise PluginError(f"plug-in {source!r}: method name {cls.name!r} is already registered by "
+                          f"{_SOURCES[cls.name]!r}; choose another name")
+    if cls.baseline:
+        other = [name for name, method in _METHODS.items() if method.baseline]
+        if other:
+            raise PluginError(f"plug-in {source!r}: method {cls.name!r} declares baseline = True, but {other[0]!r} is "
+                              "the baseline already (one baseline per registry)")
+    try:
+        instance = cls()
+    except Exception as error:  # a plug-in's constructor is its own code
+        raise PluginError(f"plug-in {source!r}: method {cls.name!r} cannot be constructed without arguments: "
+                          f"{type(error).__name__}: {error}") from None
+    _METHODS[cls.name] = instance
+    _SOURCES[cls.name] = source
     return cls
 
 
+@contextlib.contextmanager
+def _loading(source):
+    _LOADING.append(source)
+    try:
+        yield
+    finally:
+        _LOADING.pop()
+
+
+def _import(module, source):
+    """Import a plug-in module; any failure becomes one :class:`PluginError` line naming the plug-in."""
+    with _loading(source):
+        try:
+            return importlib.import_module(module)
+        except PluginError:
+            raise
+        except ModuleNotFoundError as error:
+            if error.name and module.startswith(error.name):
+                raise PluginError(f"plug-in {source!r}: no module named {module!r} on the Python path (set "
+                                  "PYTHONPATH, or install it)") from None
+            raise PluginError(f"plug-in {source!r} fails to import: {type(error).__name__}: {error}") from None
+        except Exception as error:  # a plug-in's import runs its own code
+            raise PluginError(f"plug-in {source!r} fails to import: {type(error).__name__}: {error}") from None
+
+
+def load_plugins(modules=()):
+    """Import plug-in modules by name (``--plugin MODULE``); their decorated classes register.
+
+    A module already imported is not imported again.
+
+    Returns
+    -------
+    tuple of str
+        The names of the methods each module added, in order.
+
+    Raises
+    ------
+    PluginError
+        A module that is not found or fails to import, a name clash, a broken contract.
+    """
+    _load_builtin()
+    before = set(_METHODS)
+    for module in modules:
+        if not isinstance(module, str) or not module.strip():
+            raise PluginError(f"--plugin takes a module name such as my_methods, got {module!r}")
+        _import(module.strip(), module.strip())
+    return tuple(name for name in _METHODS if name not in before)
+
+
 def method_names():
-    """Registered method names, in registration order."""
+    """Registered method names, in registration order (built-ins first)."""
     _load_builtin()
     return tuple(_METHODS)
+
+
+def method_source(name):
+    """The module (or entry point) that registered ``name``."""
+    _load_builtin()
+    return _SOURCES[name]
 
 
 def get_method(name):
@@ -29,14 +195,39 @@ def get_method(name):
     """
     _load_builtin()
     if name not in _METHODS:
-        raise ValueError(f"unknown method {name!r}; registered methods: {', '.join(sorted(_METHODS))}")
+        raise ValueError(f"unknown method {name!r}; registered methods: {', '.join(sorted(_METHODS))} "
+                         "(a plug-in's method needs --plugin MODULE)")
     return _METHODS[name]
 
 
+def baseline_name():
+    """The name of the baseline method (``pt``)."""
+    _load_builtin()
+    return next(name for name, method in _METHODS.items() if method.baseline)
+
+
+def resolve_method_options(name, given=None, *, grid_shape):
+    """The resolved options of method ``name`` (see :func:`~sparselt.methods.options.resolve_options`)."""
+    from .options import resolve_options
+
+    method = get_method(name)
+    return resolve_options(method.Options, given or {}, grid_shape=grid_shape, owner=name)
+
+
 def _load_builtin():
-    from . import path_tracing  # noqa: F401,I001  (they register, in this order)
-    from . import samples_mean  # noqa: F401
-    from . import cosamp_reconstruction  # noqa: F401
-    from . import filtered  # noqa: F401
-    from . import guided  # noqa: F401
-    from . import sft_reconstruction  # noqa: F401
+    if not _STATE["builtin"]:
+        _STATE["builtin"] = True
+        from . import path_tracing  # noqa: F401,I001  (they register, in this order)
+        from . import samples_mean  # noqa: F401
+        from . import cosamp_reconstruction  # noqa: F401
+        from . import filtered  # noqa: F401
+        from . import sft_reconstruction  # noqa: F401
+        from . import guided  # noqa: F401
+    if not _STATE["entry_points"]:
+        _STATE["entry_points"] = True
+        for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+            _import(entry.value.split(":")[0], f"{entry.name} = {entry.value} (entry point)")
+
+
+__all__ = ["ENTRY_POINT_GROUP", "PluginError", "baseline_name", "check_method_class", "get_method",
+           "load_plugins", "method_names", "method_source", "register", "resolve_method_options"]

@@ -12,6 +12,7 @@ class SamplesMean(Method):
     """Per-pixel mean of exactly the samples the CoSaMP methods receive (their ablation)."""
 
     name = "samples-mean"
+    family = "ablation"
     kinds = ("dof", "indirect", "path", "path-indirect")
     description = "per-pixel mean of the CoSaMP methods' samples (the same budget without reconstruction)"
 

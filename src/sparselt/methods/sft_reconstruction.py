@@ -10,11 +10,13 @@ the chapter-4 convolution integration of the recovered spectrum
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..recovery.path_space import sft_path_space
 from .base import Method, MethodResult, PhaseTimer
+from .options import MethodOptions, option
 from .registry import register
 
 DEFAULT_ALPHA = 4.0
@@ -22,25 +24,42 @@ DEFAULT_SNR = 10.0
 THESIS_SPARSITY_FRACTION = 1e-4  # thesis 6.1.1: K = N / 10^4
 
 
-def sft_options(context):
-    """``(K, alpha, snr)`` of a comparison: K defaults to N / 10^4, as the thesis."""
-    options = context.options
-    size = math.prod(context.grid_shape)
-    sparsity = options.get("sparsity") or max(1, round(size * THESIS_SPARSITY_FRACTION))
-    alpha = options.get("alpha") or DEFAULT_ALPHA
-    snr = DEFAULT_SNR if options.get("sft_snr") is None else options["sft_snr"]
-    return int(sparsity), float(alpha), float(snr)
+def default_sparsity(grid_shape):
+    """``K = N / 10^4`` (thesis 6.1.1), at least 1."""
+    return max(1, round(math.prod(grid_shape) * THESIS_SPARSITY_FRACTION))
 
 
-def reconstruct(context, spp, seed):
-    """The SFT reconstruction of the context's grid at ``spp`` path samples per lattice point."""
+def _half_the_grid(grid_shape):
+    return max(1, math.prod(grid_shape) // 2)
+
+
+@dataclass(frozen=True)
+class SftOptions(MethodOptions):
+    """The Sparse Fourier Transform's options, shared by ``sft`` and ``guided-sft`` (thesis 6.1, 6.2)."""
+
+    sparsity: int | None = option(None, derive=default_sparsity, default_text="N/10^4", minimum=1,
+                                  maximum=_half_the_grid, maximum_text="N/2", section="6.1.1",
+                                  help="K, the Fourier coefficients the SFT recovers")
+    alpha: float = option(DEFAULT_ALPHA, minimum=1.0, section="2.3, 6.1.1",
+                          help="buckets per coefficient, B = alpha K (the thesis's Table 6.1: 4, 16, 32)")
+    snr: float = option(DEFAULT_SNR, section="2.3",
+                        help="signal-to-noise ratio in dB the SFT assumes (sets its hash and repetition counts)")
+
+
+def reconstruct(context, spp, seed, options=None):
+    """The SFT reconstruction of the context's grid at ``spp`` path samples per lattice point.
+
+    ``options`` (default ``context.options``) has ``sparsity``, ``alpha`` and
+    ``snr`` (an :class:`SftOptions` or one derived from it).
+    """
     grid = tuple(context.grid_shape)
-    sparsity, alpha, snr = sft_options(context)
+    options = context.options if options is None else options
 
     def evaluate(cells):
         return context.scene.sample_cells(context.layout, grid, 0, 0, spp, seed, cells=cells)
 
-    return sft_path_space(evaluate, grid, sparsity, spp, alpha=alpha, snr=snr, seed=seed)
+    return sft_path_space(evaluate, grid, int(options.sparsity), spp, alpha=float(options.alpha),
+                          snr=float(options.snr), seed=seed)
 
 
 @register
@@ -48,27 +67,30 @@ class SparseFourierMethod(Method):
     """Image from the SFT of the rendered signal; ``--spp`` is path samples per lattice point."""
 
     name = "sft"
+    family = "sft"
+    thesis_procedure = True
+    Options = SftOptions
     kinds = ("path", "path-indirect", "dof", "indirect")
     description = ("Sparse Fourier Transform of the rendered signal on the rank-1 lattice (thesis 6.1); "
-                   "--spp = path samples per lattice point, --sparsity K (default N/10^4), --alpha")
+                   "--spp = path samples per lattice point, K = N/10^4 by default")
     needs_resolution_multiple = True
 
     def run(self, context, budget):
+        options = self.options_of(context)
         timer = PhaseTimer()
-        result = reconstruct(context, budget.spp, budget.seed)
+        result = reconstruct(context, budget.spp, budget.seed, options)
         timer.seconds["sampling"] = result.seconds["sampling"]
         timer.seconds["reconstruction"] = result.seconds["reconstruction"]
         with timer("integration"):
             image = result.image()
             image = np.repeat(np.repeat(image, context.upscale[1], axis=0), context.upscale[0], axis=1)
-        sparsity, alpha, snr = sft_options(context)
         width, height = context.grid_shape[:2]
         return MethodResult(
             image=np.ascontiguousarray(image, dtype=np.float32), seconds=timer.seconds,
             path_samples=result.path_samples,
             details={"support_samples": result.support_samples, "magnitude_samples": result.magnitude_samples,
                      "lattice_points": result.cells, "samples_per_point": budget.spp,
-                     "samples_per_pixel": result.path_samples / (width * height), "sparsity": sparsity,
-                     "alpha": alpha, "snr_db": snr, "nonfinite_samples": result.nonfinite,
+                     "samples_per_pixel": result.path_samples / (width * height), "sparsity": options.sparsity,
+                     "alpha": options.alpha, "snr_db": options.snr, "nonfinite_samples": result.nonfinite,
                      "stop_reasons": [r.stop_reason for r in result.results],
                      "coefficients": [int(s.indices.size) for s in result.spectra]})

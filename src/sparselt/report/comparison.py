@@ -17,14 +17,19 @@ run's :class:`~sparselt.storage.folder.ExperimentFolder`:
     Each method's relMSE and SSIM over path tracing's at the same time.
 ``table_6.md``, ``table_6.csv``
     Guided methods in the layout of thesis Tables 6.2/6.3 (when any ran).
+``methods.md``, ``methods.csv``
+    Every method's family, role, source and resolved options.
 ``index.html``
     The page: Table 8 beside the thesis, the figures, equal-time verdicts.
 
 This package is a sink: it takes plain rows (dicts with
 :data:`~sparselt.report.comparison_rows.RESULT_COLUMNS`), a duck-typed
 configuration (attributes ``kind``, ``shape``, ``output_resolution``,
-``spps``, ``methods``; ``map_spp`` when present) and the folder, and imports
-nothing from ``experiments/``. Thesis numbers come from
+``spps``, ``methods``), the methods' records (``{name: {'baseline',
+'family', 'thesis_procedure', 'options', 'description'}}``, as
+``compare.json`` holds them) and the folder, and imports nothing from
+``experiments/``. Reports choose rows by the methods' roles (the baseline,
+a family), never by their names. Thesis numbers come from
 :mod:`sparselt.thesis_numbers` only.
 
 References
@@ -45,7 +50,9 @@ from .comparison_rows import (
     COLUMN_ORDER,
     EXTRA_COLUMNS,
     RESULT_COLUMNS,
+    baseline_of,
     group_mean,
+    in_family,
     method_spp_groups,
     methods_in_order,
 )
@@ -102,15 +109,16 @@ def results_csv(rows, columns=COLUMN_ORDER):
     return table.csv()
 
 
-def table_8(rows, scene, config, *, epsilon=DEFAULT_EPSILON):
+def table_8(rows, scene, config, *, methods, epsilon=DEFAULT_EPSILON):
     """Tables 8.1/8.2 layout: seconds per phase and quality per method and spp, the thesis's beside (one Table).
 
-    Means over seeds. The thesis's four times stand beside the CoSaMP
-    methods only, for the scenes of :data:`THESIS_TABLES` at kind ``dof``
-    (Tables 8.1/8.2 are depth of field); ``table_8.md`` and the page are both
-    made from this one object.
+    Means over seeds. The thesis's four times stand beside the methods of
+    family ``'cosamp'`` only, for the scenes of :data:`THESIS_TABLES` at kind
+    ``dof`` (Tables 8.1/8.2 are depth of field); ``table_8.md`` and the page
+    are both made from this one object.
     """
     thesis = THESIS_TABLES.get(scene) if config.kind == "dof" else None
+    cosamp = in_family(methods, "cosamp")
     columns, kinds = ["SPP"] + list(TABLE_8_COLUMNS), [""] + ["ours"] * len(TABLE_8_COLUMNS)
     if thesis:
         columns += [f"thesis {name}" for name in THESIS_TIMES]
@@ -122,7 +130,7 @@ def table_8(rows, scene, config, *, epsilon=DEFAULT_EPSILON):
         cells += [f"{group_mean(group, 'ssim'):.3f}", f"{group_mean(group, 'relmse'):.4g}",
                   f"{group_mean(group, 'luminance_ratio'):.3f}"]
         if thesis:
-            values = thesis[2].get(spp) if method.startswith("cosamp") else None
+            values = thesis[2].get(spp) if method in cosamp else None
             cells += [f"{value:g}" for value in values] if values else ["-"] * len(THESIS_TIMES)
         table_rows.append((method, cells))
     notes = ["Mean over seeds; kernels warmed first; CoSaMP = the reconstruction phase; "
@@ -134,16 +142,17 @@ def table_8(rows, scene, config, *, epsilon=DEFAULT_EPSILON):
                  notes=notes, label_header="method")
 
 
-def equal_time_table(rows, epsilon=DEFAULT_EPSILON):
+def equal_time_table(rows, *, methods, epsilon=DEFAULT_EPSILON):
     """``equal_time.md``: per method and spp (mean over seeds), relMSE and SSIM against PT's at the same time.
 
     relMSE ratio < 1 and SSIM ratio > 1 mean the method beats path tracing at
     equal time; '-' where PT's runs do not reach that time (nothing is
     extrapolated).
     """
+    baseline = baseline_of(methods)
     table_rows = []
     for method, spp, group in method_spp_groups(rows):
-        if method == "pt":
+        if method == baseline:
             continue
         mean = {key: group_mean(group, key) for key in ("seconds_total", "relmse", "ssim", "luminance_ratio")}
         pt_relmse = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
@@ -166,26 +175,28 @@ def equal_time_table(rows, epsilon=DEFAULT_EPSILON):
                f"{epsilon}). relMSE ratio < 1 and SSIM ratio > 1: better than PT at equal time."])
 
 
-def table_6(rows, scene, config):
+def table_6(rows, scene, config, *, methods):
     """Tables 6.2/6.3 layout for the guided methods: ``[ours, the thesis's]`` (the thesis's only for its scenes).
 
     Ours: image size, spp, map spp, guided time, PT time at the same spp,
     both relMSEs and the guided relMSE over PT's at equal time (mean over
-    seeds). Empty when no guided method (``guided-*``) ran.
+    seeds). Empty when no method of family ``'guided'`` ran.
     """
-    guided = [row for row in rows if row["method"].startswith("guided-")]
+    family = in_family(methods, "guided")
+    baseline = baseline_of(methods)
+    guided = [row for row in rows if row["method"] in family]
     if not guided:
         return []
     width, height = config.output_resolution
     table_rows = []
     for method, spp, group in method_spp_groups(guided):
         seconds, relmse = group_mean(group, "seconds_total"), group_mean(group, "relmse")
-        pt_rows = [row for row in rows if row["method"] == "pt" and row["spp"] == spp]
+        pt_rows = [row for row in rows if row["method"] == baseline and row["spp"] == spp]
         pt_seconds = f"{group_mean(pt_rows, 'seconds_total'):.3f}" if pt_rows else "-"
         pt_relmse = f"{group_mean(pt_rows, 'relmse'):.4g}" if pt_rows else "-"
         equal = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
         ratio = f"{relmse / float(np.mean(equal)):.2f}" if len(equal) == len(group) else "-"
-        map_spp = getattr(config, "map_spp", None) or 16  # the guided methods' default pilot samples per map cell
+        map_spp = methods[method].get("options", {}).get("map_spp", "-")
         table_rows.append((method, [f"{width}x{height}", str(spp), str(map_spp), f"{seconds:.3f}", pt_seconds,
                                     f"{relmse:.4g}", pt_relmse, ratio]))
     tables = [Table(
@@ -218,11 +229,12 @@ def results_table(rows):
 
 
 # ---------------------------------------------------------------------------------------------- the page
-def equal_time_verdicts(rows):
+def equal_time_verdicts(rows, *, methods):
     """One sentence per method from its relMSE against PT's at the same time (mean of the ratios over spp)."""
+    baseline = baseline_of(methods)
     verdicts = []
     for method in methods_in_order(rows):
-        if method == "pt":
+        if method == baseline:
             continue
         group = [row for row in rows if row["method"] == method and row.get("relmse_pt_equal_time") not in ("", None)]
         if not group:
@@ -242,10 +254,29 @@ def equal_time_verdicts(rows):
 FIGURES = (("quality_vs_time.png", "Figures 8.1/8.3 layout: relMSE and SSIM against time"),
            ("image_grid.png", "Figures 8.2/8.4 layout: the methods at matched time beside the reference"),
            ("crop_grid.png", "Details where the methods disagree most"))
-LINKS = ("results.csv", "equal_time.md", "table_8.md", "table_8.csv", "table_6.md", "compare.json")
+LINKS = ("results.csv", "equal_time.md", "table_8.md", "table_8.csv", "table_6.md", "methods.md", "compare.json")
 
 
-def comparison_section(folder_path, prefix, rows, config, scene, *, title=None, epsilon=DEFAULT_EPSILON):
+def methods_table(methods, rows=None):
+    """Every method of the comparison: family, whether it is the thesis's procedure, source and resolved options.
+
+    ``rows`` (optional) restricts and orders it to the methods that have rows.
+    """
+    names = methods_in_order(rows) if rows else list(methods)
+    table_rows = []
+    for name in names:
+        record = methods.get(name, {})
+        role = "baseline" if record.get("baseline") else ("thesis procedure" if record.get("thesis_procedure")
+                                                          else "")
+        options = ", ".join(f"{key}={_format(value)}" for key, value in (record.get("options") or {}).items())
+        table_rows.append((name, [record.get("family", ""), role, options or "-", record.get("source", "")]))
+    return Table(caption="Methods: roles and resolved options", columns=["family", "role", "options", "source"],
+                 kinds=["ours"] * 4, rows=table_rows, label_header="method",
+                 notes=["Every option at the value the runs used (defaults resolved); 'sparselt methods NAME' "
+                        "describes them."])
+
+
+def comparison_section(folder_path, prefix, rows, config, scene, *, methods, title=None, epsilon=DEFAULT_EPSILON):
     """The report section of the comparison in ``folder_path``: Table 8 beside the thesis, figures, verdicts, links.
 
     Parameters
@@ -258,6 +289,8 @@ def comparison_section(folder_path, prefix, rows, config, scene, *, title=None, 
     config
         ``kind``, ``shape``, ``output_resolution`` (see the module docstring).
     scene : str
+    methods : dict
+        The methods' records (roles, options), as ``compare.json`` holds them.
     title : str, optional
         Default: the scene, kind, grid and image size.
     epsilon : float, optional
@@ -280,12 +313,12 @@ def comparison_section(folder_path, prefix, rows, config, scene, *, title=None, 
         introduction=f"{scene}, {_grid(config)}: every method at every budget against a cached Mitsuba reference; "
                      f"relMSE epsilon {epsilon:g}; equal time means every second counted (pilot samples, "
                      "reconstruction, filtering), kernels warmed first.",
-        tables=[table_8(rows, scene, config, epsilon=epsilon)], figures=figures,
-        verdicts=equal_time_verdicts(rows), links=links)
+        tables=[table_8(rows, scene, config, methods=methods, epsilon=epsilon), methods_table(methods, rows)],
+        figures=figures, verdicts=equal_time_verdicts(rows, methods=methods), links=links)
 
 
 # ---------------------------------------------------------------------------------------------- the one entry point
-def write_comparison_outputs(folder, rows, reference, config, scene, *, epsilon, image_of, provenance,
+def write_comparison_outputs(folder, rows, reference, config, scene, *, methods, epsilon, image_of, provenance,
                              columns=COLUMN_ORDER):
     """Write every report file of a comparison through its folder (see the module docstring); return their names.
 
@@ -303,6 +336,10 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, epsilon,
         ``methods`` (``map_spp`` when present).
     scene : str
         The scene's name.
+    methods : dict
+        ``{name: record}``: each method's roles (``baseline``, ``family``,
+        ``thesis_procedure``), ``options`` and ``source``, as ``compare.json``
+        holds them.
     epsilon : float
         The relMSE's epsilon.
     image_of : callable
@@ -333,19 +370,20 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, epsilon,
         matched = matched_pictures(rows, reference, image_of)
         figure("image_grid.png", image_grid_figure(*matched))
         figure("crop_grid.png", crop_grid_figure(*matched))
-    for stem, table in (("table_8", table_8(rows, scene, config, epsilon=epsilon)),
-                        ("equal_time", equal_time_table(rows, epsilon))):
+    for stem, table in (("table_8", table_8(rows, scene, config, methods=methods, epsilon=epsilon)),
+                        ("equal_time", equal_time_table(rows, methods=methods, epsilon=epsilon)),
+                        ("methods", methods_table(methods, rows))):
         folder.write_table(stem, table)
         written += [stem + ".md", stem + ".csv"]
-    guided = table_6(rows, scene, config)
+    guided = table_6(rows, scene, config, methods=methods)
     if guided:
         text("table_6.md", markdown_document(*guided))
         text("table_6.csv", guided[0].csv())
-    section = comparison_section(folder.path, "", rows, config, scene, epsilon=epsilon)
+    section = comparison_section(folder.path, "", rows, config, scene, methods=methods, epsilon=epsilon)
     text("index.html", page_html(folder.path, f"sparselt compare: {scene}", [section], provenance))
     return written
 
 
 __all__ = ["COLUMN_ORDER", "DEFAULT_EPSILON", "EXTRA_COLUMNS", "RESULT_COLUMNS", "TABLE_8_COLUMNS", "THESIS_GUIDING_TABLES",
-           "THESIS_TABLES", "comparison_section", "equal_time_table", "equal_time_verdicts", "results_csv",
+           "THESIS_TABLES", "comparison_section", "equal_time_table", "equal_time_verdicts", "methods_table", "results_csv",
            "results_table", "table_6", "table_8", "write_comparison_outputs"]

@@ -21,6 +21,16 @@ EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time")
 COLUMN_ORDER = RESULT_COLUMNS + EXTRA_COLUMNS
 
 
+def baseline_of(methods):
+    """The baseline's name among a comparison's method records (``{name: {'baseline': ...}}``), or None."""
+    return next((name for name, record in methods.items() if record.get("baseline")), None)
+
+
+def in_family(methods, family):
+    """The names of the method records of ``family`` ('cosamp', 'guided', ...)."""
+    return {name for name, record in methods.items() if record.get("family") == family}
+
+
 def methods_in_order(rows):
     """The rows' methods, in order of first appearance."""
     return list(dict.fromkeys(row["method"] for row in rows))
@@ -74,5 +84,5 @@ def matched_rows(rows):
     return matched, target
 
 
-__all__ = ["COLUMN_ORDER", "EXTRA_COLUMNS", "RESULT_COLUMNS", "group_mean", "matched_rows", "mean_curve",
+__all__ = ["COLUMN_ORDER", "EXTRA_COLUMNS", "RESULT_COLUMNS", "baseline_of", "group_mean", "in_family", "matched_rows", "mean_curve",
            "method_spp_groups", "methods_in_order"]

@@ -72,10 +72,28 @@ def _json_default(value):
     raise TypeError(f"cannot store {type(value).__name__} in an identity")
 
 
-def identity_differences(recorded, current, limit=3):
-    """``'key: recorded -> current'`` for the keys whose values differ (at most ``limit``, then '...')."""
+def _flattened(identity, growable):
+    """The identity with each growable key's entries as ``key.entry`` (growable values are dicts)."""
+    flat = {}
+    for key, value in identity.items():
+        if key in growable and isinstance(value, dict):
+            flat.update({f"{key}.{entry}": item for entry, item in value.items()})
+        else:
+            flat[key] = value
+    return flat
+
+
+def identity_differences(recorded, current, limit=3, growable=()):
+    """``'key: recorded -> current'`` for the keys whose values differ (at most ``limit``, then '...').
+
+    A ``growable`` key's entries are compared one by one, and only those both
+    identities hold (an entry one of them lacks is not a difference).
+    """
+    recorded, current = _flattened(recorded, growable), _flattened(current, growable)
     keys = sorted(set(recorded) | set(current))
-    changed = [key for key in keys if recorded.get(key) != current.get(key)]
+    optional = tuple(f"{key}." for key in growable)
+    changed = [key for key in keys if recorded.get(key) != current.get(key)
+               and not (key.startswith(optional) and (key not in recorded or key not in current))]
     text = [f"{key}: {_short(recorded.get(key, '(absent)'))} recorded, {_short(current.get(key, '(absent)'))} now"
             for key in changed[:limit]]
     return "; ".join(text) + (f"; and {len(changed) - limit} more" if len(changed) > limit else "")
@@ -110,6 +128,10 @@ class ExperimentFolder:
         message names the changed files.
     overwrite : bool, optional
         Replace a folder of another identity (only the files it lists).
+    growable : tuple of str, optional
+        Identity keys whose values are dicts a rerun may extend (a
+        comparison's per-method options, as it may add methods): entries both
+        runs hold must be equal, new entries join the recorded identity.
 
     Notes
     -----
@@ -119,7 +141,7 @@ class ExperimentFolder:
     command in the history.
     """
 
-    def __init__(self, path, *, kind, identity, scene=None, overwrite=False):
+    def __init__(self, path, *, kind, identity, scene=None, overwrite=False, growable=()):
         path = os.fspath(path)
         if "://" in path:
             raise FolderError(f"output {path!r}: only file-system paths are supported, not URLs")
@@ -128,6 +150,7 @@ class ExperimentFolder:
         self.identity = _canonical(identity)
         self.scene = _canonical(scene) if scene is not None else None
         self.overwrite = bool(overwrite)
+        self.growable = tuple(growable)
         self.manifest = None
         self.plan = None
         self._lock = None
@@ -196,13 +219,13 @@ class ExperimentFolder:
         recorded = dict(manifest.get("identity") or {})
         if manifest.get("scene") is not None:
             recorded["scene_digest"] = manifest["scene"].get("digest")
-        if recorded == self.full_identity:
+        if not identity_differences(recorded, self.full_identity, growable=self.growable):
             self.plan = "resume"
             return self.plan
         if self.overwrite:
             self.plan = "replace"
             return self.plan
-        difference = identity_differences(recorded, self.full_identity)
+        difference = identity_differences(recorded, self.full_identity, growable=self.growable)
         if recorded.get("scene_digest") != self.full_identity.get("scene_digest"):
             from ..rendering.identity import describe_scene_change
 
@@ -272,6 +295,10 @@ class ExperimentFolder:
                 self._remove_listed(self.manifest)
                 self.manifest = None
             previous = self.manifest or {}
+            for key in self.growable:  # a resumed run keeps what the earlier runs recorded
+                earlier = (previous.get("identity") or {}).get(key)
+                if isinstance(earlier, dict) and isinstance(self.identity.get(key), dict):
+                    self.identity[key] = dict(earlier, **self.identity[key])
             self._files = set(previous.get("files") or [])
             history = list(previous.get("history") or [])
             history.append(dict(environment_record(), started=_now(), plan=self.plan))
