@@ -46,7 +46,7 @@ def main():
 
     scene = mitsuba_backend.MitsubaScene(get_scene("dof-sculptures"), shape[:2])
     context = ComparisonContext(scene=scene, layout=path_layout("dof", 3, thin_lens=True), kind="dof",
-                                grid_shape=shape, resolution=shape[:2], max_depth=3, options={"gamma": 0.25})
+                                grid_shape=shape, resolution=shape[:2], max_depth=3)  # default options (gamma 0.25)
     pt = method_phases(context, "pt", arguments.spp, arguments.repeats)
     print(f"dof-sculptures {'x'.join(map(str, shape))}, spp {arguments.spp}, best of {arguments.repeats}, 2 cores")
     print(f"  pt (baseline, same run)        {pt.total_seconds:7.3f} s")

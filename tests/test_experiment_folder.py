@@ -96,6 +96,23 @@ def test_another_identity_is_refused_naming_what_differs(tmp_path):
     assert (out / "result.txt").read_text().endswith("{'size': 1, 'name': 'a'}")
 
 
+def test_a_growable_identity_key_may_gain_entries_but_not_change_them(tmp_path):
+    """A comparison's per-method options: a rerun may add a method; a method already there keeps its options."""
+    out = tmp_path / "run"
+    growable = {"growable": ("methods",)}
+    _run(out, identity={"size": 1, "methods": {"a": {"k": 1}}}, **growable)
+    _run(out, identity={"size": 1, "methods": {"b": {"k": 5}}}, files=("more.txt",), **growable)
+    manifest = json.loads((out / MANIFEST_FILE).read_text())
+    assert manifest["identity"]["methods"] == {"a": {"k": 1}, "b": {"k": 5}}  # the union is recorded
+    assert [entry["plan"] for entry in manifest["history"]] == ["new", "resume"]
+    with pytest.raises(FolderError, match=r"methods.a: \{\"k\": 1\} recorded, \{\"k\": 2\} now"):
+        _run(out, identity={"size": 1, "methods": {"a": {"k": 2}}}, **growable)
+    with pytest.raises(FolderError, match=r"size: 1 recorded, 3 now"):
+        _run(out, identity={"size": 3, "methods": {"a": {"k": 1}}}, **growable)
+    with pytest.raises(FolderError, match=r"methods: "):  # without growable the whole dict must match
+        _run(out, identity={"size": 1, "methods": {"a": {"k": 1}}})
+
+
 def test_overwrite_removes_only_what_the_manifest_lists(tmp_path):
     out = tmp_path / "run"
     _run(out, identity={"size": 1}, files=("old.txt", "images/old.png"), cells=("cell",))

@@ -110,3 +110,17 @@ def test_every_comparison_writes_a_page_a_browser_renders(tmp_path, chromium):
     parsed = _Collector()
     parsed.feed(dom)
     assert all((tmp_path / "c" / target).exists() for target in parsed.links + parsed.images)
+
+
+def test_plugin_methods_join_chapter_8_and_the_folder_identity(tmp_path, monkeypatch):
+    """--plugin on reproduce: the plug-in's depth-of-field methods are chapter 8's extra methods, and a folder
+    reproduced with them is another identity than one without (results of different method sets never mix)."""
+    from sparselt.experiments.reproduce import plugin_methods_for_chapter_8
+
+    monkeypatch.syspath_prepend(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples"))
+    assert plugin_methods_for_chapter_8(["median_of_means"]) == (("median-of-means",), ())
+    assert plugin_methods_for_chapter_8([]) == ((), ())
+    out = tmp_path / "report"
+    reproduce("4", "quick", out, progress=False, plugins=["median_of_means"])
+    with pytest.raises(ValueError, match=r"plugin_methods: \["):
+        reproduce("4", "quick", out, progress=False)

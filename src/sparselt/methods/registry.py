@@ -157,7 +157,8 @@ def load_plugins(modules=()):
     Returns
     -------
     tuple of str
-        The names of the methods each module added, in order.
+        The names of the methods these modules registered, in registration
+        order (whether they were imported now or before).
 
     Raises
     ------
@@ -165,12 +166,13 @@ def load_plugins(modules=()):
         A module that is not found or fails to import, a name clash, a broken contract.
     """
     _load_builtin()
-    before = set(_METHODS)
+    names = []
     for module in modules:
         if not isinstance(module, str) or not module.strip():
             raise PluginError(f"--plugin takes a module name such as my_methods, got {module!r}")
-        _import(module.strip(), module.strip())
-    return tuple(name for name in _METHODS if name not in before)
+        names.append(module.strip())
+        _import(names[-1], names[-1])
+    return tuple(name for name, source in _SOURCES.items() if source in names)
 
 
 def method_names():
