@@ -12,10 +12,11 @@ Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
                             explicit, scene content digest), files written, status, and
                             every command that contributed (versions, git revision)
     compare.json            resolved configuration (the union of methods, budgets and
-                            seeds over reruns), warm-up (compile) times, harness overhead
+                            seeds over reruns), every method's record (description, roles,
+                            source, resolved options), warm-up (compile) times, harness overhead
     results.csv             one row per (method, spp, seed): RESULT_COLUMNS first
-    cells/                  one JSON record per finished (method, spp, seed):
-                            what a rerun resumes from
+    cells/                  one JSON record per finished (method, spp, seed), with the
+                            method's resolved options: what a rerun resumes from
     images/                 EXR + PNG + npy per method, spp and seed, and the reference
     quality_vs_time.png     SSIM and relMSE against seconds (Figures 8.1/8.3)
     image_grid.png          every method at matched time (Figures 8.2/8.4, 8.7/8.9)
@@ -23,6 +24,7 @@ Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
     table_8.md, .csv        time per phase (Tables 8.1/8.2), thesis numbers beside
     equal_time.md, .csv     relMSE and SSIM of each method over PT's at the same time
     table_6.md              guided methods: Tables 6.2/6.3 layout (image size, spp, guided and PT time)
+    methods.md, .csv        every method's family, role, source and resolved options
     index.html              the report page
 
 Every file is written atomically and listed in the manifest; a rerun with the
@@ -48,7 +50,7 @@ from ..analysis.metrics import (
     reference_exposure,
     relative_mean_squared_error,
 )
-from ..checks import check_integer, check_positive_finite
+from ..checks import check_integer
 from ..images import luminance
 from ..methods import TIME_PHASES, Budget, ComparisonContext, baseline_name, get_method, resolve_options
 from ..methods.contract import check_result
@@ -417,8 +419,6 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
             resolved[name] = list(dict.fromkeys(list(earlier) + resolved[name]))
         record["config"] = resolved
         record["provenance"] = environment_record()  # this command's; the manifest keeps every command's
-        record["method_descriptions"] = dict(record.get("method_descriptions", {}),
-                                             **{method.name: method.description for method in methods})
         record["methods"] = dict(record.get("methods", {}), **{
             method.name: method_record(method, options[method.name]) for method in methods})
         record.setdefault("warm_up_seconds", {})
