@@ -8,6 +8,7 @@ tables are the same objects in the `.md`, the `.csv` and the page.
 import csv
 import io
 import json
+import re
 from types import SimpleNamespace
 
 import numpy as np
@@ -61,6 +62,18 @@ def _rows(methods=("pt", "cosamp"), spps=(40, 81), seeds=(1, 2)):
     return rows
 
 
+def _summary(rows):
+    from sparselt.experiments.equal_time import add_equal_time_columns, summarize
+
+    return summarize(rows, add_equal_time_columns(rows, baseline="pt"), baseline="pt")
+
+
+def _summary_of(rows, baseline):
+    from sparselt.experiments.equal_time import add_equal_time_columns, summarize
+
+    return summarize(rows, add_equal_time_columns(rows, baseline=baseline), baseline=baseline)
+
+
 def _write(tmp_path, rows, config, scene="dof-sculptures"):
     folder = ExperimentFolder(tmp_path / "c", kind="compare-report-test", identity={"scene": scene})
     folder.inspect()
@@ -68,7 +81,7 @@ def _write(tmp_path, rows, config, scene="dof-sculptures"):
     images = {(row["method"], row["spp"], row["seed"]): rng.random((16, 16, 3)).astype(np.float32) for row in rows}
     with folder.open():
         written = write_comparison_outputs(folder, rows, rng.random((16, 16, 3)), config, scene, epsilon=0.01,
-                                           methods=_methods(config.methods),
+                                           methods=_methods(config.methods), summary=_summary(rows),
                                            image_of=lambda row: images[row["method"], row["spp"], row["seed"]],
                                            provenance={"versions": {"numpy": np.__version__}, "git": None})
         folder.complete()
@@ -84,7 +97,10 @@ def test_every_report_file_goes_through_the_folder(tmp_path):
         assert (tmp_path / "c" / name).stat().st_size > 0, name
     assert "table_6.md" not in written  # no guided method ran
     page = (tmp_path / "c" / "index.html").read_text()
-    assert "cosamp loses to PT at equal time" in page or "cosamp beats PT at equal time" in page
+    assert "has no equal-time PT value (PT" in page and "at 81 spp" in page  # 81 spp is beyond PT's ladder
+    assert re.search(r"cosamp (wins|loses|is within noise) at 40 spp \(relMSE [0-9.]+x \[", page)
+    for name in ("summary.csv", "results.csv"):
+        assert name in written and f'href="{name}"' in page
     assert 'href="table_8.csv"' in page and 'src="image_grid.png"' in page
 
 
@@ -94,7 +110,7 @@ def test_results_csv_puts_the_column_order_first_and_quotes_through_csv(tmp_path
     assert tuple(parsed[0][:len(COLUMN_ORDER)]) == COLUMN_ORDER and parsed[0][len(COLUMN_ORDER):] == ["note"]
     assert parsed[1][-1] == 'a, "b"' and len(parsed) == len(rows) + 1
     custom = list(csv.reader(io.StringIO(results_csv(rows, columns=("seed", "method")))))
-    assert custom[0][:2] == ["seed", "method"] and set(custom[0]) == set(parsed[0])
+    assert custom[0][:2] == ["seed", "method"] and set(custom[0]) == {key for row in rows for key in row}
     assert tuple(COLUMN_ORDER[:len(RESULT_COLUMNS)]) == RESULT_COLUMNS
 
 
@@ -112,9 +128,12 @@ def test_table_8_puts_the_thesis_beside_cosamp_at_depth_of_field_only():
 
 
 def test_equal_time_table_compares_only_where_pt_reaches_the_time():
-    cells = {(label, cells[0]): cells for label, cells in equal_time_table(_rows(), methods=_methods()).rows}
+    rows = _rows()
+    cells = {(label, cells[0]): cells for label, cells in equal_time_table(_summary(rows), methods=_methods()).rows}
     assert set(cells) == {("cosamp", "40"), ("cosamp", "81")}  # PT itself is not compared with PT
-    assert cells["cosamp", "40"][3] == "0.02" and cells["cosamp", "81"][3] == "-"
+    # cosamp at 40 spp takes 1.5 s, inside PT's ladder (1 s to 2.03 s); at 81 spp 3.04 s, beyond it.
+    assert cells["cosamp", "40"][4] != "-" and cells["cosamp", "40"][6] in ("wins", "loses", "within noise")
+    assert cells["cosamp", "81"][4] == "-" and cells["cosamp", "81"][6] == "no PT value"
 
 
 def test_table_6_for_guided_methods_with_the_thesis_beside(tmp_path):
@@ -141,7 +160,7 @@ def test_writing_outside_an_open_folder_is_refused(tmp_path):
     folder = ExperimentFolder(tmp_path / "c", kind="compare-report-test", identity={})
     with pytest.raises(RuntimeError, match="outside 'with folder.open"):
         write_comparison_outputs(folder, [], np.zeros((16, 16, 3)), _config(), "cornell-box", epsilon=0.01,
-                                 methods={}, image_of=None, provenance={})
+                                 methods={}, summary=[], image_of=None, provenance={})
 
 
 def test_reports_choose_rows_by_role_not_by_name():
@@ -156,7 +175,7 @@ def test_reports_choose_rows_by_role_not_by_name():
     thesis = THESIS_TABLES["dof-sculptures"][2]
     assert by_row["my-sparse", "40"][-4:] == [f"{value:g}" for value in thesis[40]]
     assert by_row["adaptive-guide", "40"][-4:] == ["-"] * 4
-    compared = {label for label, _ in equal_time_table(rows, methods=methods).rows}
+    compared = {label for label, _ in equal_time_table(_summary_of(rows, "reference-tracer"), methods=methods).rows}
     assert compared == {"adaptive-guide", "my-sparse"}  # the baseline is not compared with itself
     ours, _ = table_6(rows, "cornell-caustics", _config(kind="path"), methods=methods)
     assert {label for label, _ in ours.rows} == {"adaptive-guide"}

@@ -155,7 +155,7 @@ def test_guided_sft_counts_its_map_samples(tmp_path):
                               resolution=(32, 32), reference_spp=64,
                               options={"guided-sft": {"sparsity": 30, "map_spp": 1, "mode": "global"}})
     result = compare(config, tmp_path / "g", progress=False)
-    row = result.rows[0]
+    row = next(row for row in result.rows if row["method"] == "guided-sft")
     assert row["path_samples"] > 32 * 32 * 2  # the SFT's lattice samples come on top of the render's
     assert np.isfinite(row["relmse"])
 

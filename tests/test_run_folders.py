@@ -16,7 +16,7 @@ from sparselt.cli import main
 from sparselt.storage.folder import MANIFEST_FILE, ExperimentFolder
 
 COMPARE = ["compare", "--scene", "cornell-box", "--kind", "dof", "--aperture", "0.1", "--shape", "16,16,2,2",
-           "--methods", "pt", "--spp", "2", "--reference-spp", "16", "--no-progress"]
+           "--methods", "pt", "--spp", "2", "--seeds", "1", "--reference-spp", "16", "--no-progress"]
 
 PLY = """ply
 format ascii 1.0
@@ -57,7 +57,7 @@ def xml_scene(folder, size=1.0):
 
 def xml_compare(scene):
     return ["compare", "--scene", scene, "--kind", "path", "--shape", "16,16" + ",2" * 8, "--methods", "pt",
-            "--spp", "2", "--reference-spp", "16", "--no-progress"]
+            "--spp", "2", "--seeds", "1", "--reference-spp", "16", "--no-progress"]
 
 
 def tree(path):

@@ -234,7 +234,13 @@ def build_parser():
     compare.add_argument("--methods", type=_names, default=("pt", "cosamp"),
                          help="comma-separated registered methods (default: pt,cosamp; 'sparselt methods' lists them)")
     compare.add_argument("--spp", type=_shape, default=(40, 81, 163), help="budgets in samples per pixel (default: 40,81,163)")
-    compare.add_argument("--seeds", type=_shape, default=(1,), help="seeds, comma separated (default: 1)")
+    compare.add_argument("--seeds", type=_shape, default=(1, 2, 3),
+                         help="seeds, comma separated; intervals and verdicts come from their spread (default: 1,2,3)")
+    compare.add_argument("--timing-repeats", type=int, default=3,
+                         help="runs of every cell; its time is the median (default: %(default)s)")
+    compare.add_argument("--pt-ladder-max-spp", type=int, default=4096,
+                         help="PT runs automatically at a doubling spp ladder until it passes every method's time, "
+                              "up to this spp (default: %(default)s)")
     compare.add_argument("--resolution", type=_shape, default=None, help="output width,height (default: the shape's image axes)")
     compare.add_argument("--reference-spp", type=int, default=4096, help="reference samples per pixel (default: %(default)s)")
     compare.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
@@ -397,7 +403,8 @@ def _compare(arguments):
         spps=tuple(arguments.spp), seeds=tuple(arguments.seeds),
         resolution=tuple(arguments.resolution) if arguments.resolution else None,
         reference_spp=arguments.reference_spp, max_depth=arguments.max_depth, aperture=arguments.aperture,
-        focus_distance=arguments.focus_distance, options=arguments.options, caustic_mask=arguments.caustic_mask,
+        focus_distance=arguments.focus_distance, options=arguments.options, timing_repeats=arguments.timing_repeats,
+        pt_ladder_max_spp=arguments.pt_ladder_max_spp, caustic_mask=arguments.caustic_mask,
         variant=arguments.variant, scene_parameters=arguments.parameters)
     result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
     print(result.table())

@@ -84,9 +84,10 @@ def png_bytes(image, *, exposure=1.0):
 
 
 def figure_bytes(figure, **options):
-    """A matplotlib figure as PNG bytes; the figure is closed."""
+    """A matplotlib figure as PNG bytes, cropped to what it draws (legends outside the axes included); closed."""
     import matplotlib.pyplot as pyplot
 
+    options.setdefault("bbox_inches", "tight")
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", **options)
     pyplot.close(figure)

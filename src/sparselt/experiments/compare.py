@@ -56,19 +56,17 @@ from ..methods import TIME_PHASES, Budget, ComparisonContext, baseline_name, get
 from ..methods.contract import check_result
 from ..provenance import environment_record
 from ..rendering import mitsuba_backend
-from ..rendering.baseline import check_wavefront
+from ..rendering.baseline import check_wavefront, reference_relmse_floor
 from ..rendering.identity import scene_identity
 from ..rendering.layout import path_layout
 from ..rendering.scenes import SceneSpec, get_scene
 from ..report.comparison import results_table, write_comparison_outputs
+from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS
 from ..storage.folder import ExperimentFolder
-from .equal_time import add_equal_time_columns
+from .equal_time import NOISY_TIMING_RATIO, add_equal_time_columns, summarize
 
 KINDS = ("dof", "indirect", "path", "path-indirect")
 RELMSE_EPSILON = 0.01
-RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", "seconds_reconstruction",
-                  "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
-EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time")
 CONFIG_FILE = "compare.json"
 IMAGES = "images"
 # What makes two comparisons the same: everything but the lists a rerun may extend.
@@ -114,6 +112,11 @@ class ComparisonConfig:
         command line). Each method declares its options, defaults and
         ranges (``sparselt methods NAME``); :meth:`resolved_options` checks
         them all before anything runs.
+    timing_repeats : int
+        Runs of every cell; its time is their median (see :class:`_CellRunner`).
+    pt_ladder_max_spp : int
+        The largest spp of PT's automatic ladder (a row whose time it does
+        not reach has no equal-time value, and says so).
     caustic_mask : bool
         Also report ``relmse_caustic``: relMSE inside :func:`caustic_mask`.
     variant : str
@@ -127,7 +130,7 @@ class ComparisonConfig:
     shape: tuple
     methods: tuple = ("pt", "cosamp")
     spps: tuple = (40, 81, 163)
-    seeds: tuple = (1,)
+    seeds: tuple = (1, 2, 3)
     resolution: tuple | None = None
     reference_spp: int = 4096
     reference_seed: int = 0
@@ -135,6 +138,8 @@ class ComparisonConfig:
     aperture: float | None = None
     focus_distance: float | None = None
     options: dict = field(default_factory=dict)
+    timing_repeats: int = 3
+    pt_ladder_max_spp: int = 4096
     caustic_mask: bool = False
     variant: str = "llvm_ad_rgb"
     scene_parameters: tuple = ()
@@ -224,6 +229,7 @@ class ComparisonResult:
     reference: dict = field(default_factory=dict)
     overhead_fraction: float = 0.0
     methods: dict = field(default_factory=dict)
+    summary: list = field(default_factory=list)
 
     def table(self):
         return results_table(self.rows)
@@ -250,6 +256,8 @@ def validate_config(config):
         raise ValueError("give at least one seed")
     for seed in config.seeds:
         check_integer("seed", seed, 0, 2**32 - 2)
+    check_integer("timing repeats", config.timing_repeats, 1, 100)
+    check_integer("PT ladder max spp", config.pt_ladder_max_spp, 2, 2**16 - 1)
     check_integer("reference seed", config.reference_seed, 0, 2**16 - 1)
     check_integer("max_depth", config.max_depth, 1)
     if len(config.shape) < 2:
@@ -268,7 +276,7 @@ def validate_config(config):
             raise ValueError(f"method {method.name!r} needs --resolution to be a multiple of the shape's image axes "
                              f"{tuple(config.shape[:2])}; got {resolution}")
     config.resolved_options()  # every method's options, checked before anything runs
-    check_wavefront(resolution, max(config.spps))
+    check_wavefront(resolution, max(max(config.spps), config.pt_ladder_max_spp))
     check_reference_spp(resolution, config.reference_spp)
     if min(resolution) < 11:
         raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
@@ -408,8 +416,10 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     layout = _check_layout(config, loaded.camera.thin_lens, spec.hide_emitters)
     context = ComparisonContext(scene=loaded, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
                                 resolution=config.output_resolution, max_depth=config.max_depth)
-    methods = [get_method(name) for name in config.methods]  # their kinds were checked by validate_config
-    options = config.resolved_options()
+    baseline = baseline_name()
+    names = tuple(config.methods) + ((baseline,) if baseline not in config.methods else ())  # PT's ladder
+    methods = [get_method(name) for name in names]  # their kinds were checked by validate_config
+    options = resolve_run_options(names, config.options, config.shape)
 
     with folder.open():
         record = folder.read_json(CONFIG_FILE) if folder.exists(CONFIG_FILE) else {}
@@ -441,40 +451,30 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
             folder.write_png(f"{IMAGES}/caustic_mask.png", np.repeat(mask[..., None], 3, axis=2).astype(np.float32))
             record["caustic_mask_pixels"] = int(mask.sum())
         record["reference"] = {key: reference_record[key] for key in ("key", "seconds", "cached", "path")}
+        floor = reference_relmse_floor(reference, reference_record["variance"], epsilon=RELMSE_EPSILON)
+        record["reference_relmse_floor"] = floor if math.isfinite(floor) else None
 
-        method_seconds = 0.0
-        for method in methods:
-            cells = [(spp, seed) for seed in config.seeds for spp in config.spps
-                     if folder.cell(cell_name(method.name, spp, seed)) is None]
-            if not cells:
-                continue
-            method_context = context.with_options(options[method.name])
-            warm_start = time.perf_counter()
-            method.warm_up(method_context)
-            record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
-            method_seconds += record["warm_up_seconds"][method.name]
-            for spp, seed in cells:
-                budget = Budget(spp=spp, seed=seed)
-                run_start = time.perf_counter()
-                result = method.run(method_context, budget)
-                wall = time.perf_counter() - run_start
-                method_seconds += wall
-                seconds = check_result(method, result, method_context, budget, wall_seconds=wall)
-                row = _row(method.name, spp, seed, result, seconds, reference, mask)
-                name = cell_name(method.name, spp, seed)
-                folder.write_image(f"{IMAGES}/{name}", result.image, exposure=exposure)
-                folder.record_cell(name, {"row": row, "details": result.details, "seconds": seconds,
-                                          "options": options[method.name].record(), "wall_seconds": wall})
-                if progress:
-                    print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s, "
-                          f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, "
-                          f"luminance x{row['luminance_ratio']:.3f}", file=sys.stderr)
+        runner = _CellRunner(folder, context, options, config, reference, mask, exposure, record, progress)
+        runner.floor = record["reference_relmse_floor"]
+        ordered = [method for method in methods if method.name != baseline]
+        ordered += [method for method in methods if method.name == baseline]
+        for method in ordered:
+            if method.name in config.methods:
+                runner.run(method, [(spp, seed) for seed in config.seeds for spp in config.spps])
+        if any(method.name != baseline for method in methods):
+            record["pt_ladder"] = runner.ladder(get_method(baseline))
+        method_seconds = runner.seconds
 
-        rows = _load_rows(folder, record["config"]["methods"])
-        add_equal_time_columns(rows, baseline=baseline_name())
+        rows = _load_rows(folder, [baseline] + record["config"]["methods"])
+        fit = add_equal_time_columns(rows, baseline=baseline)
+        summary = summarize(rows, fit, baseline=baseline)
+        record["pt_fit"] = None if fit is None else {
+            "intercept_seconds": fit.intercept, "seconds_per_spp": fit.slope, "time_relative_residual": fit.time_residual,
+            "relmse_per_seed": {str(seed): {"c": c, "floor": floor} for seed, (c, floor) in fit.relmse.items()},
+            "spp_range": list(fit.spp_range)}
         report_start = time.perf_counter()
         write_comparison_outputs(folder, rows, reference, config, spec.name, methods=record["methods"],
-                                 epsilon=RELMSE_EPSILON,
+                                 summary=summary, fit=record["pt_fit"], epsilon=RELMSE_EPSILON,
                                  image_of=lambda row: np.load(folder.path_of(
                                      f"{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy")),
                                  provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
@@ -489,7 +489,107 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         folder.write_json(CONFIG_FILE, record)
         folder.complete(seconds=record["seconds"])
     return ComparisonResult(rows=rows, out=folder.path, reference=record["reference"],
-                            overhead_fraction=record["harness_overhead_fraction"], methods=record["methods"])
+                            overhead_fraction=record["harness_overhead_fraction"], methods=record["methods"],
+                            summary=summary)
+
+
+class _CellRunner:
+    """Runs a comparison's cells: each (method, spp, seed) ``timing_repeats`` times, and PT's ladder.
+
+    A repeat re-runs the whole method with the same budget (a method gives
+    the same image for the same seed, which is checked): the time of a cell
+    is the median of its repeats' totals, its phases those of the median
+    run, and min and max are recorded. Re-timing the same computation would
+    leave out exactly what varies between runs (the renderer's launches,
+    allocation, caches), so the whole run is repeated.
+    """
+
+    def __init__(self, folder, context, options, config, reference, mask, exposure, record, progress):
+        self.folder, self.context, self.options, self.config = folder, context, options, config
+        self.reference, self.mask, self.exposure, self.record, self.progress = reference, mask, exposure, record, progress
+        self.seconds = 0.0
+        self.warm = set()
+        self.floor = None
+
+    def run(self, method, cells):
+        """Run the cells of ``method`` not yet in the folder; return the rows of all of ``cells``."""
+        method_context = self.context.with_options(self.options[method.name])
+        for spp, seed in cells:
+            name = cell_name(method.name, spp, seed)
+            if self.folder.cell(name) is not None:
+                continue
+            if method.name not in self.warm:
+                warm_start = time.perf_counter()
+                method.warm_up(method_context)
+                self.record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
+                self.seconds += self.record["warm_up_seconds"][method.name]
+                self.warm.add(method.name)
+            self._cell(method, method_context, spp, seed, name)
+        return [self.folder.cell(cell_name(method.name, spp, seed))["row"] for spp, seed in cells]
+
+    def _cell(self, method, method_context, spp, seed, name):
+        budget = Budget(spp=spp, seed=seed)
+        runs = []
+        largest_difference = 0.0
+        for _ in range(self.config.timing_repeats):
+            run_start = time.perf_counter()
+            result = method.run(method_context, budget)
+            wall = time.perf_counter() - run_start
+            self.seconds += wall
+            seconds = check_result(method, result, method_context, budget, wall_seconds=wall)
+            if runs:
+                first = runs[0][0].image
+                scale = float(np.abs(first).max()) or 1.0
+                difference = float(np.abs(result.image.astype(np.float64) - first).max()) / scale
+                # Atomic accumulation (the global guided mode splats samples into pixels from many threads) sums
+                # in another order each run: equal to float32 rounding, not bitwise. Anything larger is a breach.
+                if difference > 1e-4:
+                    raise ValueError(f"method {method.name!r} gave another image when run again with the same seed "
+                                     f"({seed}) at spp {spp} (largest difference {difference:.2g} of the image's "
+                                     "maximum): a method must be a function of its budget")
+                largest_difference = max(largest_difference, difference)
+            runs.append((result, seconds, wall))
+        totals = [sum(seconds.values()) for _, seconds, _ in runs]
+        median = sorted(range(len(runs)), key=totals.__getitem__)[len(runs) // 2]
+        result, seconds = runs[0][0], runs[median][1]
+        row = _row(method.name, spp, seed, result, seconds, self.reference, self.mask)
+        if self.floor is not None:
+            row.update(reference_relmse_floor=self.floor, relmse_debiased=row["relmse"] - self.floor,
+                       reference_limited=bool(row["relmse"] < 2 * self.floor))
+        row.update(seconds_total=float(np.median(totals)), seconds_total_min=min(totals),
+                   seconds_total_max=max(totals), timing_repeats=len(runs),
+                   timing_noisy=bool(max(totals) > NOISY_TIMING_RATIO * min(totals)))
+        self.folder.write_image(f"{IMAGES}/{name}", result.image, exposure=self.exposure)
+        self.folder.record_cell(name, {"row": row, "details": result.details, "seconds": seconds,
+                                       "repeat_totals": totals, "repeat_image_difference": largest_difference,
+                                       "options": self.options[method.name].record(),
+                                       "wall_seconds": [wall for _, _, wall in runs]})
+        if self.progress:
+            print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s "
+                  f"(median of {len(runs)}), SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, "
+                  f"luminance x{row['luminance_ratio']:.3f}", file=sys.stderr)
+
+    def ladder(self, baseline):
+        """PT at spp = s0, 2 s0, 4 s0, ... (s0 below the smallest budget) for every seed, until its median time
+        passes every other method's median time or the cap :attr:`ComparisonConfig.pt_ladder_max_spp`."""
+        config = self.config
+        others = [record["row"] for name, record in self.folder.cells().items()
+                  if record["row"]["method"] != baseline.name and record["row"]["method"] in config.methods]
+        target = max((row["seconds_total"] for row in others), default=0.0)
+        spp = max(1, min(config.spps) // 2)
+        steps, reached, capped = [], 0.0, False
+        while True:
+            rows = self.run(baseline, [(spp, seed) for seed in config.seeds])
+            reached = float(np.median([row["seconds_total"] for row in rows]))
+            steps.append(spp)
+            if reached > target and len(steps) >= 2:
+                break
+            if 2 * spp > config.pt_ladder_max_spp:
+                capped = True
+                break
+            spp *= 2
+        return {"spps": steps, "target_seconds": target, "reached_seconds": reached, "capped": capped,
+                "max_spp": config.pt_ladder_max_spp}
 
 
 def method_record(method, options):

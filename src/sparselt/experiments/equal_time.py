@@ -1,58 +1,313 @@
-"""Path tracing's quality at each run's time: the equal-time columns of a comparison (thesis 8.1.1).
+r"""The equal-time protocol: what "equal time" and "beats path tracing" mean in a comparison (thesis 8.1.1).
 
 The thesis's question for its applications is whether a method gains image
-quality *for the same computation time* (8.1.1). A comparison runs path
-tracing (``pt``) at several budgets; :func:`add_equal_time_columns` gives
-every other run the relMSE and SSIM path tracing reaches at that run's total
-time, interpolated between PT's measured budgets and never extrapolated.
+quality *for the same computation time* (8.1.1). This module is the one place
+that answers it, from a comparison's rows (one per method, spp and seed, each
+with the median of its repeated timings):
+
+1. **Path tracing's fits.** The baseline (``pt``) runs at a ladder of
+   budgets. Its median time is fitted as :math:`t = a + b \cdot spp`
+   (least squares over the ladder, relative residual reported), and its
+   relMSE, per seed, as :math:`r = c / spp + f` (relative least squares,
+   ``f >= 0``: the floor that the reference's own noise and any bias leave).
+   PT's relMSE at time ``t`` is :math:`c / spp(t) + f` with
+   :math:`spp(t) = (t - a) / b`, never a piecewise interpolation of noisy
+   points; its SSIM at ``t`` is interpolated in log spp between its ladder's
+   runs of the same seed. A time beyond the ladder has no value (nothing is
+   extrapolated): the harness extends the ladder until it passes every
+   method's time, within a cap.
+2. **Ratios and intervals.** Per (method, spp): the mean relMSE over seeds
+   and its 95% Student-t interval; the ratio of that mean to PT's mean relMSE
+   at the same (per-seed median) times, with a 95% interval by the delta
+   method on the log ratio (t quantile, ``n - 1`` degrees of freedom; the
+   seeds are paired). Both relMSEs first lose the reference's own floor
+   (``reference_relmse_floor``, from the spread of the reference's passes):
+   the ratio is of ``relmse_debiased``. Where either is not above the floor
+   the verdict is ``reference-limited``. The same for SSIM (PT's over the method's, so that
+   below 1 is better for both).
+3. **Verdict.** ``wins`` when the relMSE ratio's interval lies below 1,
+   ``loses`` when above, ``within noise`` when it covers 1, ``one seed`` when
+   there is no interval. Verdicts are per budget; sentences never average
+   over budgets.
+4. **Equal-quality speed-up.** PT's time to reach the method's mean relMSE
+   (from the fits, seeds averaged), over the method's time; its interval from
+   the relMSE interval. Where the method's relMSE is below PT's floor, PT
+   cannot reach it: the speed-up is infinite.
 
 References
 ----------
-Thesis section 8.1.1 (equal-time comparison), Figures 8.1 and 8.3.
+Thesis 8.1.1 (equal-time comparison), Figures 8.1 and 8.3. Bienaymé/delta
+method for ratio intervals: Casella and Berger (2002), 5.5.4.
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, field
+
 import numpy as np
 
-from ..report.comparison_rows import mean_curve
+from ..report.comparison_rows import group_mean
+
+#: Two-sided 95% intervals.
+CONFIDENCE = 0.95
+#: A cell whose slowest repeat took more than this many times its fastest is flagged noisy.
+NOISY_TIMING_RATIO = 1.5
+VERDICTS = ("wins", "loses", "within noise", "one seed", "no PT value", "reference-limited")
+
+
+def _t_quantile(degrees):
+    """The two-sided 95% Student-t quantile (scipy's, exact)."""
+    from scipy.stats import t
+
+    return float(t.ppf(0.5 + CONFIDENCE / 2, degrees))
+
+
+def mean_interval(values):
+    """``(mean, low, high)``: the mean of ``values`` and its 95% Student-t interval (``nan`` bounds for one value)."""
+    values = np.asarray(values, dtype=np.float64)
+    mean = float(values.mean())
+    if values.size < 2:
+        return mean, math.nan, math.nan
+    half = _t_quantile(values.size - 1) * float(values.std(ddof=1)) / math.sqrt(values.size)
+    return mean, mean - half, mean + half
+
+
+def ratio_interval(numerator, denominator):
+    """Ratio of means of paired samples with its 95% delta-method interval on the log scale.
+
+    ``var(log(mean x / mean y)) ~ var(x)/(n mean x^2) + var(y)/(n mean y^2)
+    - 2 cov(x, y)/(n mean x mean y)``; the interval is
+    ``exp(log ratio +- t_{n-1} sd)``. ``nan`` bounds for one pair.
+    """
+    x, y = np.asarray(numerator, np.float64), np.asarray(denominator, np.float64)
+    ratio = float(x.mean() / y.mean())
+    if x.size < 2 or not ratio > 0:
+        return ratio, math.nan, math.nan
+    covariance = np.cov(x, y, ddof=1)
+    variance = (covariance[0, 0] / x.mean() ** 2 + covariance[1, 1] / y.mean() ** 2
+                - 2 * covariance[0, 1] / (x.mean() * y.mean())) / x.size
+    half = _t_quantile(x.size - 1) * math.sqrt(max(variance, 0.0))
+    return ratio, ratio * math.exp(-half), ratio * math.exp(half)
+
+
+def verdict(low, high):
+    """``wins`` / ``loses`` / ``within noise`` / ``one seed`` from a ratio's interval (below 1 is better)."""
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return "one seed"
+    if high < 1:
+        return "wins"
+    if low > 1:
+        return "loses"
+    return "within noise"
+
+
+@dataclass(frozen=True)
+class BaselineFit:
+    """Path tracing's time and relMSE against spp, fitted on its ladder (see the module docstring).
+
+    Attributes
+    ----------
+    intercept, slope : float
+        ``t = intercept + slope * spp`` (seconds).
+    time_residual : float
+        Root-mean-square relative residual of the time fit.
+    relmse : dict
+        ``{seed: (c, floor)}``: ``relMSE = c / spp + floor``.
+    ssim : dict
+        ``{seed: [(spp, ssim), ...]}`` sorted by spp.
+    spp_range : tuple of int
+        The ladder's smallest and largest spp.
+    reached_seconds : float
+        The largest fitted time the ladder covers.
+    """
+
+    intercept: float
+    slope: float
+    time_residual: float
+    relmse: dict
+    ssim: dict
+    spp_range: tuple
+    reached_seconds: float
+    samples: dict = field(default_factory=dict)
+
+    def spp_at(self, seconds):
+        return (seconds - self.intercept) / self.slope
+
+    def seconds_at(self, spp):
+        return self.intercept + self.slope * spp
+
+    def covers(self, seconds):
+        """Whether the ladder reaches ``seconds`` (no extrapolation beyond its largest budget)."""
+        return seconds <= self.reached_seconds * (1 + 1e-9)
+
+    def relmse_at(self, seconds, seed):
+        """PT's relMSE at ``seconds`` for ``seed`` (its own seed's fit); ``nan`` beyond the ladder."""
+        if not self.covers(seconds) or seed not in self.relmse:
+            return math.nan
+        c, floor = self.relmse[seed]
+        spp = max(self.spp_at(seconds), 1e-9)
+        return c / spp + floor
+
+    def ssim_at(self, seconds, seed):
+        """PT's SSIM at ``seconds``: interpolated in log spp on the seed's ladder (held below its first budget)."""
+        if not self.covers(seconds) or seed not in self.ssim:
+            return math.nan
+        points = self.ssim[seed]
+        spp = max(self.spp_at(seconds), 1e-9)
+        return float(np.interp(math.log(spp), [math.log(p) for p, _ in points], [v for _, v in points]))
+
+    def seconds_for_relmse(self, relmse):
+        """PT's time to reach ``relmse`` with the seeds' mean fit; ``inf`` at or below its floor."""
+        c = float(np.mean([value[0] for value in self.relmse.values()]))
+        floor = float(np.mean([value[1] for value in self.relmse.values()]))
+        if not relmse > floor:
+            return math.inf
+        return self.seconds_at(c / (relmse - floor))
+
+
+def fit_relmse(spps, relmses):
+    """``(c, floor)`` of ``relMSE = c / spp + floor`` by relative least squares, ``floor >= 0``, ``c >= 0``."""
+    x = 1.0 / np.asarray(spps, np.float64)
+    r = np.asarray(relmses, np.float64)
+    design = np.stack([x / r, 1.0 / r], axis=1)
+    if len(r) >= 2:
+        (c, floor), *_ = np.linalg.lstsq(design, np.ones_like(r), rcond=None)
+        if c >= 0 and floor >= 0:
+            return float(c), float(floor)
+    c = float(np.sum(x / r) / np.sum((x / r) ** 2))  # floor 0
+    return max(c, 0.0), 0.0
+
+
+def fit_baseline(rows, baseline):
+    """The :class:`BaselineFit` of the baseline's rows (at least two spp), or None.
+
+    Raises nothing; fewer than two budgets give None (no equal-time values).
+    """
+    pt = [row for row in rows if row["method"] == baseline]
+    spps = sorted({row["spp"] for row in pt})
+    if len(spps) < 2:
+        return None
+    times = [group_mean([row for row in pt if row["spp"] == spp], "seconds_total") for spp in spps]
+    slope, intercept = np.polyfit(np.asarray(spps, np.float64), np.asarray(times, np.float64), 1)
+    if not slope > 0:  # a ladder too short or too noisy to show time growing with spp
+        slope, intercept = float(np.mean(times) / np.mean(spps)), 0.0
+    fitted = intercept + slope * np.asarray(spps, np.float64)
+    residual = float(np.sqrt(np.mean(((np.asarray(times) - fitted) / fitted) ** 2)))
+    relmse, ssim = {}, {}
+    for seed in sorted({row["seed"] for row in pt}):
+        seed_rows = sorted((row for row in pt if row["seed"] == seed), key=lambda row: row["spp"])
+        if len(seed_rows) >= 2:
+            relmse[seed] = fit_relmse([row["spp"] for row in seed_rows], [row["relmse"] for row in seed_rows])
+            ssim[seed] = [(row["spp"], row["ssim"]) for row in seed_rows]
+    return BaselineFit(intercept=float(intercept), slope=float(slope), time_residual=residual, relmse=relmse,
+                       ssim=ssim, spp_range=(spps[0], spps[-1]), reached_seconds=float(intercept + slope * spps[-1]))
 
 
 def add_equal_time_columns(rows, *, baseline="pt"):
-    """Add ``relmse_pt_equal_time`` and ``ssim_pt_equal_time`` to every row: PT's quality at the row's time.
+    """Add PT's quality at each row's time (``relmse_pt_equal_time``, ``ssim_pt_equal_time``); return the fit.
 
     Parameters
     ----------
     rows : list of dict
-        A comparison's rows (``method``, ``spp``, ``seconds_total``,
+        A comparison's rows (``method``, ``spp``, ``seed``, ``seconds_total``,
         ``relmse``, ``ssim``); changed in place.
     baseline : str, optional
         The baseline method's name (the registry's, :func:`sparselt.methods.baseline_name`).
 
+    Returns
+    -------
+    BaselineFit or None
+        None when the baseline ran at fewer than two budgets.
+
     Notes
     -----
-    PT's runs are first averaged over seeds per spp
-    (:func:`~sparselt.report.comparison_rows.mean_curve`). relMSE is
-    interpolated log-log (relMSE ~ 1/time for an unbiased estimator), SSIM
-    against log time. The columns are ``''`` for PT's own rows, where PT ran
-    at fewer than two budgets, and where the row's time lies outside PT's
-    measured range: nothing is extrapolated.
+    The columns are ``''`` for the baseline's own rows, without a fit, and
+    where the row's time lies beyond the baseline's ladder.
     """
-    curves = {quantity: mean_curve([row for row in rows if row["method"] == baseline], quantity)
-              for quantity in ("relmse", "ssim")}
+    fit = fit_baseline(rows, baseline)
     for row in rows:
-        for quantity, curve in curves.items():
-            key = f"{quantity}_pt_equal_time"
-            row[key] = ""
-            if row["method"] == baseline or len(curve) < 2:
-                continue
-            times, values = zip(*curve)
-            time = row["seconds_total"]
-            if times[0] <= time <= times[-1]:
-                if quantity == "relmse":
-                    row[key] = float(np.exp(np.interp(np.log(time), np.log(times), np.log(values))))
-                else:
-                    row[key] = float(np.interp(np.log(time), np.log(times), values))
+        row["relmse_pt_equal_time"] = row["ssim_pt_equal_time"] = ""
+        if row["method"] == baseline or fit is None:
+            continue
+        relmse = fit.relmse_at(row["seconds_total"], row["seed"])
+        ssim = fit.ssim_at(row["seconds_total"], row["seed"])
+        if math.isfinite(relmse):
+            row["relmse_pt_equal_time"] = relmse
+        if math.isfinite(ssim):
+            row["ssim_pt_equal_time"] = ssim
+    return fit
 
 
-__all__ = ["add_equal_time_columns"]
+SUMMARY_COLUMNS = ("method", "spp", "seeds", "seconds_total", "seconds_total_min", "seconds_total_max",
+                   "timing_noisy", "relmse", "relmse_ci_low", "relmse_ci_high", "relmse_pt_equal_time",
+                   "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high", "verdict", "ssim",
+                   "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high", "ssim_verdict",
+                   "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high")
+
+
+def summarize(rows, fit, *, baseline="pt"):
+    """One record per (method, spp) with :data:`SUMMARY_COLUMNS` (``summary.csv``); also fills the rows'
+    ``relmse_ratio``, ``verdict`` and ``speedup_equal_quality`` (their intervals only in the summary)."""
+    summary = []
+    for method in dict.fromkeys(row["method"] for row in rows):
+        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
+            group = sorted((row for row in rows if row["method"] == method and row["spp"] == spp),
+                           key=lambda row: row["seed"])
+            record = {"method": method, "spp": spp, "seeds": len(group)}
+            record["seconds_total"] = group_mean(group, "seconds_total")
+            record["seconds_total_min"] = min(row.get("seconds_total_min", row["seconds_total"]) for row in group)
+            record["seconds_total_max"] = max(row.get("seconds_total_max", row["seconds_total"]) for row in group)
+            record["timing_noisy"] = any(bool(row.get("timing_noisy")) for row in group)
+            record["relmse"], record["relmse_ci_low"], record["relmse_ci_high"] = mean_interval(
+                [row["relmse"] for row in group])
+            record["ssim"] = group_mean(group, "ssim")
+            _compare_with_baseline(record, group, fit, method == baseline)
+            summary.append(record)
+            for row in group:
+                floor = row.get("reference_relmse_floor", 0.0) or 0.0
+                row["relmse_ratio"] = ((row["relmse"] - floor) / (row["relmse_pt_equal_time"] - floor)
+                                       if row.get("relmse_pt_equal_time") not in ("", None) else "")
+                row["verdict"] = record["verdict"]
+                row["speedup_equal_quality"] = record["speedup_equal_quality"]
+    return summary
+
+
+def _compare_with_baseline(record, group, fit, is_baseline):
+    empty = dict.fromkeys(("relmse_pt_equal_time", "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high",
+                           "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high",
+                           "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high"), "")
+    record.update(empty, verdict="baseline" if is_baseline else "no PT value", ssim_verdict="")
+    if is_baseline or fit is None:
+        return
+    pt_relmse = [row.get("relmse_pt_equal_time") for row in group]
+    pt_ssim = [row.get("ssim_pt_equal_time") for row in group]
+    if any(value in ("", None) for value in pt_relmse):
+        return
+    record["relmse_pt_equal_time"] = float(np.mean(pt_relmse))
+    floor = group[0].get("reference_relmse_floor", 0.0) or 0.0
+    numerator = np.array([row["relmse"] for row in group]) - floor
+    denominator = np.array(pt_relmse, dtype=np.float64) - floor
+    if np.any(numerator <= 0) or np.any(denominator <= 0):
+        # Within the reference's own noise: the debiased relMSE says nothing; no win or loss is claimed.
+        record.update(relmse_ratio=float(np.mean(numerator) / np.mean(denominator)), verdict="reference-limited")
+    else:
+        ratio, low, high = ratio_interval(numerator, denominator)
+        record.update(relmse_ratio=ratio, relmse_ratio_ci_low=low, relmse_ratio_ci_high=high,
+                      verdict=verdict(low, high))
+    if not any(value in ("", None) for value in pt_ssim):
+        record["ssim_pt_equal_time"] = float(np.mean(pt_ssim))
+        ratio, low, high = ratio_interval(pt_ssim, [row["ssim"] for row in group])  # PT over method: < 1 is better
+        record.update(ssim_ratio=ratio, ssim_ratio_ci_low=low, ssim_ratio_ci_high=high,
+                      ssim_verdict=verdict(low, high))
+    seconds = record["seconds_total"]
+    record["speedup_equal_quality"] = fit.seconds_for_relmse(record["relmse"]) / seconds
+    low, high = record["relmse_ci_low"], record["relmse_ci_high"]
+    if math.isfinite(low) and math.isfinite(high):
+        # A lower relMSE needs more PT time: the interval's bounds swap.
+        record["speedup_ci_low"] = fit.seconds_for_relmse(high) / seconds
+        record["speedup_ci_high"] = fit.seconds_for_relmse(max(low, 0.0)) / seconds
+
+
+__all__ = ["CONFIDENCE", "NOISY_TIMING_RATIO", "SUMMARY_COLUMNS", "VERDICTS", "BaselineFit", "add_equal_time_columns",
+           "fit_baseline", "fit_relmse", "mean_interval", "ratio_interval", "summarize", "verdict"]

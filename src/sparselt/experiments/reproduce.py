@@ -270,7 +270,7 @@ def _sft_maps(scale, folder, progress):
     out = os.path.join(folder, "maps")
     result = compare(config, out, progress=progress, overwrite=True)
     section = comparison_section(out, "chapter6/maps", result.rows, config, "cornell-caustics",
-                                 methods=result.methods)
+                                 methods=result.methods, summary=result.summary)
     rows = [(f"{size}x{size}", [f"{values[0]}", "-", f"{values[1]}", "-", f"{values[2]}", "-"])
             for size, values in thesis[2].items()]
     width = config.output_resolution[0]
@@ -309,6 +309,7 @@ def chapter_8(scale, folder, progress, plugin_methods=()):
     out = os.path.join(folder, "compare")
     result = compare(config, out, progress=progress, overwrite=True)
     return comparison_section(out, "chapter8/compare", result.rows, config, "dof-sculptures", methods=result.methods,
+                              summary=result.summary,
                               title="Chapter 8: CoSaMP reconstruction, filtering and the equal-time comparison")
 
 

@@ -163,7 +163,9 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     image : ndarray, shape (height, width, 3), float32
     record : dict
         The cache key's contents, ``seconds`` of rendering, ``cached`` (whether
-        this call found it in the cache) and ``path`` of the cached image.
+        this call found it in the cache), ``path`` of the cached image and
+        ``variance``: the per-pixel variance of the reference's mean from the
+        spread of its passes (NaN with one pass; see :func:`reference_relmse_floor`).
 
     Notes
     -----
@@ -194,24 +196,28 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
         "spp": spp,
         "seed": seed,
         "pass_spp": REFERENCE_PASS_SPP,
+        "per_pass_variance": True,
         "versions": mitsuba_backend.versions(),
     }
     key = json.loads(json.dumps(key))  # as read back from reference.json (tuples become lists)
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
     folder = os.path.join(cache_directory or reference_cache_directory(), digest)
     image_path, record_path = os.path.join(folder, "image.npy"), os.path.join(folder, "reference.json")
-    if os.path.isfile(record_path) and os.path.isfile(image_path):
+    variance_path = os.path.join(folder, "variance.npy")
+    if os.path.isfile(record_path) and os.path.isfile(image_path) and os.path.isfile(variance_path):
         try:
             record, image = _read_cache_entry(record_path, image_path)
+            variance = _read_variance(record, variance_path, image.shape)
         except (OSError, ValueError, EOFError) as error:
             print(f"sparselt: note: the cached reference {folder!r} is unreadable ({error}); rendering it again",
                   file=sys.stderr)
         else:
             if record.get("key") == key and image.shape == (loaded.height, loaded.width, 3):
-                return image, dict(record, cached=True, path=image_path)
+                return image, dict(record, cached=True, path=image_path, variance=variance)
 
     passes = [min(REFERENCE_PASS_SPP, spp - start) for start in range(0, spp, REFERENCE_PASS_SPP)]
     total = np.zeros((loaded.height, loaded.width, 3), dtype=np.float64)
+    squares = np.zeros_like(total)
     seconds = 0.0
     bar = progress_bar(progress, total=spp, description=f"reference {loaded.spec.name} {spp} spp", unit="spp")
     try:
@@ -219,18 +225,27 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
             pass_seed = seed * 65536 + index
             check_wavefront((loaded.width, loaded.height), pass_spp)
             image, elapsed = loaded.render_path(pass_spp, depth, pass_seed)
-            total += pass_spp * image.astype(np.float64)
+            pass_image = image.astype(np.float64)
             seconds += elapsed
             if subtracted is not None:
                 image, elapsed = loaded.render_path(pass_spp, subtracted, pass_seed)
-                total -= pass_spp * image.astype(np.float64)
+                pass_image -= image.astype(np.float64)
                 seconds += elapsed
+            total += pass_spp * pass_image
+            squares += pass_spp * pass_image * pass_image
             if bar is not None:
                 bar.update(pass_spp)
     finally:
         if bar is not None:
             bar.close()
     image = (total / spp).astype(np.float32)
+    # The variance of the reference's mean per pixel and channel, from the spread of its passes: the per-sample
+    # variance estimated as sum_i m_i (x_i - mean)^2 / (passes - 1), divided by spp. NaN with a single pass.
+    if len(passes) > 1:
+        mean = total / spp
+        variance = (np.maximum(squares - spp * mean * mean, 0.0) / (len(passes) - 1) / spp).astype(np.float32)
+    else:
+        variance = np.full(image.shape, np.nan, dtype=np.float32)
     if not np.all(np.isfinite(image)):
         raise ValueError(f"the reference render of {loaded.spec.name!r} has NaN or infinite pixels; check the scene")
     os.makedirs(folder, exist_ok=True)
@@ -240,10 +255,38 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     np.save(buffer, image)
     atomic_write_bytes(image_path, buffer.getvalue())
     mitsuba_backend.write_exr(os.path.join(folder, "image.exr"), image)
-    record = {"key": key, "image_sha256": hashlib.sha256(buffer.getvalue()).hexdigest(), "seconds": seconds,
+    variance_buffer = io.BytesIO()
+    np.save(variance_buffer, variance)
+    atomic_write_bytes(variance_path, variance_buffer.getvalue())
+    record = {"key": key, "image_sha256": hashlib.sha256(buffer.getvalue()).hexdigest(),
+              "variance_sha256": hashlib.sha256(variance_buffer.getvalue()).hexdigest(), "seconds": seconds,
               "provenance": environment_record()}
     write_json(record_path, record)
-    return image, dict(record, cached=False, path=image_path)
+    return image, dict(record, cached=False, path=image_path, variance=variance)
+
+
+def _read_variance(record, variance_path, shape):
+    """The cached per-pixel variance of a reference's mean; ValueError if it does not match its record."""
+    with open(variance_path, "rb") as handle:
+        data = handle.read()
+    if hashlib.sha256(data).hexdigest() != record.get("variance_sha256"):
+        raise ValueError(f"{variance_path!r} does not match the SHA-256 its record holds")
+    variance = np.load(io.BytesIO(data), allow_pickle=False)
+    if variance.shape != shape:
+        raise ValueError(f"{variance_path!r} holds an array of shape {variance.shape}, not {shape}")
+    return variance
+
+
+def reference_relmse_floor(reference, variance, *, epsilon):
+    """The reference's own contribution to every relMSE against it: ``mean(var / (reference^2 + epsilon))``.
+
+    An image ``I`` compared with a noisy reference ``R = T + e`` (``e`` of
+    variance ``v``, independent of ``I``) has ``E[(I - R)^2] = E[(I - T)^2] + v``:
+    the reference adds ``v / (R^2 + epsilon)`` per pixel and channel to relMSE
+    whatever the image. NaN when the variance is unknown (one pass).
+    """
+    reference = np.asarray(reference, dtype=np.float64)
+    return float(np.mean(np.asarray(variance, dtype=np.float64) / (reference * reference + epsilon)))
 
 
 def _read_cache_entry(record_path, image_path):

@@ -40,6 +40,7 @@ Thesis chapter 8 (8.1.1, Tables 8.1 and 8.2, Figures 8.1-8.4) and 6.2
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -89,6 +90,18 @@ THESIS_GUIDING_TABLES = {
 
 def _format(value):
     return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def _runs(config):
+    seeds = getattr(config, "seeds", None)
+    repeats = getattr(config, "timing_repeats", None)
+    text = []
+    if seeds is not None:
+        text.append(f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''} ({', '.join(map(str, seeds))})"
+                    + (": one seed gives no intervals, so no verdict excludes noise" if len(seeds) == 1 else ""))
+    if repeats is not None:
+        text.append(f"each cell timed {repeats} time{'s' if repeats != 1 else ''} (median kept)")
+    return ", ".join(text) or "seeds and repeats as configured"
 
 
 def _grid(config):
@@ -142,37 +155,61 @@ def table_8(rows, scene, config, *, methods, epsilon=DEFAULT_EPSILON):
                  notes=notes, label_header="method")
 
 
-def equal_time_table(rows, *, methods, epsilon=DEFAULT_EPSILON):
-    """``equal_time.md``: per method and spp (mean over seeds), relMSE and SSIM against PT's at the same time.
+def _number(value, digits=3):
+    return f"{value:.{digits}g}" if isinstance(value, float) and math.isfinite(value) else (
+        "inf" if isinstance(value, float) and math.isinf(value) else "-")
 
-    relMSE ratio < 1 and SSIM ratio > 1 mean the method beats path tracing at
-    equal time; '-' where PT's runs do not reach that time (nothing is
-    extrapolated).
+
+def _with_interval(record, key, digits=3):
+    value = record.get(key, "")
+    if not isinstance(value, float):
+        return "-"
+    low, high = record.get(f"{key}_ci_low", ""), record.get(f"{key}_ci_high", "")
+    if isinstance(low, float) and math.isfinite(low) and isinstance(high, float):
+        return f"{_number(value, digits)} [{_number(low, digits)}, {_number(high, digits)}]"
+    return _number(value, digits)
+
+
+def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
+    """``equal_time.md``: per method and spp, quality against PT's at the same time, with intervals and verdicts.
+
+    ``summary`` holds one record per (method, spp) from the equal-time protocol
+    (:func:`sparselt.experiments.equal_time.summarize`): times are medians of
+    repeated runs (min-max beside), qualities means over seeds with 95%
+    intervals; relMSE ratio < 1 and SSIM ratio (PT's over the method's) < 1
+    mean better than PT at equal time.
     """
     baseline = baseline_of(methods)
     table_rows = []
-    for method, spp, group in method_spp_groups(rows):
-        if method == baseline:
+    for record in summary:
+        if record["method"] == baseline:
             continue
-        mean = {key: group_mean(group, key) for key in ("seconds_total", "relmse", "ssim", "luminance_ratio")}
-        pt_relmse = [row["relmse_pt_equal_time"] for row in group if row.get("relmse_pt_equal_time") not in ("", None)]
-        pt_ssim = [row["ssim_pt_equal_time"] for row in group if row.get("ssim_pt_equal_time") not in ("", None)]
-        if len(pt_relmse) == len(group) and len(pt_ssim) == len(group):
-            reference_relmse, reference_ssim = float(np.mean(pt_relmse)), float(np.mean(pt_ssim))
-            compared = [f"{reference_relmse:.4g}", f"{mean['relmse'] / reference_relmse:.2f}", f"{mean['ssim']:.3f}",
-                        f"{reference_ssim:.3f}", f"{mean['ssim'] / reference_ssim:.2f}"]
-        else:
-            compared = ["-", "-", f"{mean['ssim']:.3f}", "-", "-"]
-        table_rows.append((method, [str(spp), f"{mean['seconds_total']:.3f}", f"{mean['relmse']:.4g}", compared[0],
-                                    compared[1], compared[2], compared[3], compared[4],
-                                    f"{mean['luminance_ratio']:.3f}"]))
+        seconds = (f"{record['seconds_total']:.3f} ({record['seconds_total_min']:.3f}-"
+                   f"{record['seconds_total_max']:.3f}){' noisy' if record.get('timing_noisy') else ''}")
+        table_rows.append((record["method"], [
+            str(record["spp"]), str(record["seeds"]), seconds, _with_interval(record, "relmse", 4),
+            _number(record.get("relmse_pt_equal_time", ""), 4), _with_interval(record, "relmse_ratio"),
+            record["verdict"], _with_interval(record, "ssim_ratio"), _speedup_text(record)]))
     return Table(
         caption="Equal-time quality against path tracing",
-        columns=["spp", "seconds", "relMSE", "PT relMSE same time", "relMSE ratio", "SSIM", "PT SSIM same time",
-                 "SSIM ratio", "luminance ratio"],
-        kinds=[""] + ["ours"] * 8, rows=table_rows, label_header="method",
-        notes=[f"PT's relMSE and SSIM interpolated at each method's total time (mean over seeds; relMSE epsilon = "
-               f"{epsilon}). relMSE ratio < 1 and SSIM ratio > 1: better than PT at equal time."])
+        columns=["spp", "seeds", "seconds (min-max)", "relMSE [95%]", "PT relMSE same time", "relMSE ratio [95%]",
+                 "verdict", "SSIM ratio [95%]", "speed-up at equal quality [95%]"],
+        kinds=[""] * 2 + ["ours"] * 7, rows=table_rows, label_header="method",
+        notes=[f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). PT's "
+               f"relMSE at a time comes from its fits (time = a + b spp; relMSE = c/spp + floor per seed) over "
+               f"its automatic spp ladder. Ratios: mean over seeds over PT's mean at the same times, 95% delta-"
+               f"method interval; 'wins' or 'loses' only when the interval excludes 1. Speed-up: PT's time to "
+               f"reach the method's relMSE over the method's time. relMSE epsilon = {epsilon}."])
+
+
+def _speedup_text(record):
+    value = record.get("speedup_equal_quality", "")
+    if not isinstance(value, float):
+        return "-"
+    low, high = record.get("speedup_ci_low", ""), record.get("speedup_ci_high", "")
+    if isinstance(low, float) and isinstance(high, float):
+        return f"{_number(value)}x [{_number(low)}, {_number(high)}]"
+    return f"{_number(value)}x"
 
 
 def table_6(rows, scene, config, *, methods):
@@ -229,32 +266,56 @@ def results_table(rows):
 
 
 # ---------------------------------------------------------------------------------------------- the page
-def equal_time_verdicts(rows, *, methods):
-    """One sentence per method from its relMSE against PT's at the same time (mean of the ratios over spp)."""
+def equal_time_verdicts(summary, *, methods):
+    """One sentence per method, budget by budget, from the protocol's verdicts (never a mean over budgets)."""
     baseline = baseline_of(methods)
-    verdicts = []
-    for method in methods_in_order(rows):
-        if method == baseline:
+    return [verdict_sentence(method, summary) for method in dict.fromkeys(record["method"] for record in summary)
+            if method != baseline]
+
+
+_WORDING = {"wins": "wins", "loses": "loses", "within noise": "is within noise",
+            "one seed": "has one seed (no interval)",
+            "no PT value": "has no equal-time PT value (PT's ladder did not reach its time)",
+            "reference-limited": "is reference-limited (its relMSE or PT's is within the reference's own noise)"}
+
+
+def verdict_sentence(method, summary):
+    """The sentence on ``method`` from its summary records, grouped by verdict with each budget's figures.
+
+    Example: "cosamp wins at 40 and 81 spp (relMSE 0.77x [0.70, 0.85] and 0.81x [0.75, 0.88] PT's at equal
+    time); is within noise at 16 spp (relMSE 1.05x [0.80, 1.38] PT's at equal time)."
+    """
+    records = [record for record in summary if record["method"] == method]
+    parts = []
+    for name, wording in _WORDING.items():
+        chosen = [record for record in records if record["verdict"] == name]
+        if not chosen:
             continue
-        group = [row for row in rows if row["method"] == method and row.get("relmse_pt_equal_time") not in ("", None)]
-        if not group:
-            verdicts.append(f"{method}: PT's runs do not reach its time, so no equal-time comparison.")
+        spps = _and([str(record["spp"]) for record in chosen])
+        if name in ("no PT value", "reference-limited"):
+            parts.append(f"{wording} at {spps} spp")
             continue
-        ratio = float(np.mean([row["relmse"] / row["relmse_pt_equal_time"] for row in group]))
-        spps = sorted({row["spp"] for row in group})
-        if ratio < 1:
-            verdicts.append(f"{method} beats PT at equal time by {100 * (1 - ratio):.0f}% relMSE "
-                            f"(mean over spp {', '.join(map(str, spps))}).")
-        else:
-            verdicts.append(f"{method} loses to PT at equal time: {ratio:.2f}x PT's relMSE "
-                            f"(mean over spp {', '.join(map(str, spps))}).")
-    return verdicts
+        figures = _and([_ratio_text(record) for record in chosen])
+        parts.append(f"{wording} at {spps} spp (relMSE {figures} PT's at equal time)")
+    return f"{method} " + "; ".join(parts) + "." if parts else f"{method}: no runs."
+
+
+def _ratio_text(record):
+    low, high = record.get("relmse_ratio_ci_low"), record.get("relmse_ratio_ci_high")
+    text = f"{record['relmse_ratio']:.2f}x"
+    if isinstance(low, float) and math.isfinite(low):
+        text += f" [{low:.2f}, {high:.2f}]"
+    return text
+
+
+def _and(items):
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
 FIGURES = (("quality_vs_time.png", "Figures 8.1/8.3 layout: relMSE and SSIM against time"),
            ("image_grid.png", "Figures 8.2/8.4 layout: the methods at matched time beside the reference"),
            ("crop_grid.png", "Details where the methods disagree most"))
-LINKS = ("results.csv", "equal_time.md", "table_8.md", "table_8.csv", "table_6.md", "methods.md", "compare.json")
+LINKS = ("results.csv", "summary.csv", "equal_time.md", "table_8.md", "table_8.csv", "table_6.md", "methods.md", "compare.json")
 
 
 def methods_table(methods, rows=None):
@@ -276,7 +337,8 @@ def methods_table(methods, rows=None):
                         "describes them."])
 
 
-def comparison_section(folder_path, prefix, rows, config, scene, *, methods, title=None, epsilon=DEFAULT_EPSILON):
+def comparison_section(folder_path, prefix, rows, config, scene, *, methods, summary, title=None,
+                       epsilon=DEFAULT_EPSILON):
     """The report section of the comparison in ``folder_path``: Table 8 beside the thesis, figures, verdicts, links.
 
     Parameters
@@ -291,6 +353,8 @@ def comparison_section(folder_path, prefix, rows, config, scene, *, methods, tit
     scene : str
     methods : dict
         The methods' records (roles, options), as ``compare.json`` holds them.
+    summary : list of dict
+        The equal-time protocol's record per (method, spp).
     title : str, optional
         Default: the scene, kind, grid and image size.
     epsilon : float, optional
@@ -311,15 +375,16 @@ def comparison_section(folder_path, prefix, rows, config, scene, *, methods, tit
     return Section(
         title=title or f"{scene}, {_grid(config)}",
         introduction=f"{scene}, {_grid(config)}: every method at every budget against a cached Mitsuba reference; "
-                     f"relMSE epsilon {epsilon:g}; equal time means every second counted (pilot samples, "
-                     "reconstruction, filtering), kernels warmed first.",
+                     f"{_runs(config)}; relMSE epsilon {epsilon:g}; equal time means every second counted (pilot "
+                     "samples, reconstruction, filtering), kernels warmed first, PT's quality at a method's time "
+                     "taken from fits over its automatic spp ladder.",
         tables=[table_8(rows, scene, config, methods=methods, epsilon=epsilon), methods_table(methods, rows)],
-        figures=figures, verdicts=equal_time_verdicts(rows, methods=methods), links=links)
+        figures=figures, verdicts=equal_time_verdicts(summary, methods=methods), links=links)
 
 
 # ---------------------------------------------------------------------------------------------- the one entry point
-def write_comparison_outputs(folder, rows, reference, config, scene, *, methods, epsilon, image_of, provenance,
-                             columns=COLUMN_ORDER):
+def write_comparison_outputs(folder, rows, reference, config, scene, *, methods, summary, epsilon, image_of,
+                             provenance, fit=None, columns=COLUMN_ORDER):
     """Write every report file of a comparison through its folder (see the module docstring); return their names.
 
     Parameters
@@ -340,12 +405,18 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
         ``{name: record}``: each method's roles (``baseline``, ``family``,
         ``thesis_procedure``), ``options`` and ``source``, as ``compare.json``
         holds them.
+    summary : list of dict
+        The equal-time protocol's record per (method, spp)
+        (:func:`sparselt.experiments.equal_time.summarize`): ``summary.csv``,
+        the equal-time table and the verdicts.
     epsilon : float
         The relMSE's epsilon.
     image_of : callable
         ``image_of(row)`` returns a row's linear ``(height, width, 3)`` image.
     provenance : dict
         :func:`~sparselt.provenance.environment_record`, shown on the page.
+    fit : dict, optional
+        PT's fit as ``compare.json`` holds it (drawn on the relMSE plot).
     columns : sequence of str, optional
         ``results.csv``'s leading columns (default :data:`COLUMN_ORDER`).
 
@@ -365,13 +436,14 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
         written.append(name)
 
     text("results.csv", results_csv(rows, columns))
-    figure("quality_vs_time.png", quality_figure(rows, scene, epsilon))
+    text("summary.csv", results_csv(summary, tuple(summary[0]) if summary else ("method", "spp")))
+    figure("quality_vs_time.png", quality_figure(rows, scene, epsilon, summary, fit))
     if rows:
         matched = matched_pictures(rows, reference, image_of)
         figure("image_grid.png", image_grid_figure(*matched))
         figure("crop_grid.png", crop_grid_figure(*matched))
     for stem, table in (("table_8", table_8(rows, scene, config, methods=methods, epsilon=epsilon)),
-                        ("equal_time", equal_time_table(rows, methods=methods, epsilon=epsilon)),
+                        ("equal_time", equal_time_table(summary, methods=methods, epsilon=epsilon)),
                         ("methods", methods_table(methods, rows))):
         folder.write_table(stem, table)
         written += [stem + ".md", stem + ".csv"]
@@ -379,11 +451,12 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
     if guided:
         text("table_6.md", markdown_document(*guided))
         text("table_6.csv", guided[0].csv())
-    section = comparison_section(folder.path, "", rows, config, scene, methods=methods, epsilon=epsilon)
+    section = comparison_section(folder.path, "", rows, config, scene, methods=methods, summary=summary,
+                                 epsilon=epsilon)
     text("index.html", page_html(folder.path, f"sparselt compare: {scene}", [section], provenance))
     return written
 
 
 __all__ = ["COLUMN_ORDER", "DEFAULT_EPSILON", "EXTRA_COLUMNS", "RESULT_COLUMNS", "TABLE_8_COLUMNS", "THESIS_GUIDING_TABLES",
            "THESIS_TABLES", "comparison_section", "equal_time_table", "equal_time_verdicts", "methods_table", "results_csv",
-           "results_table", "table_6", "table_8", "write_comparison_outputs"]
+           "results_table", "table_6", "table_8", "verdict_sentence", "write_comparison_outputs"]

@@ -15,36 +15,69 @@ from .comparison_rows import matched_rows, mean_curve, methods_in_order
 from .plotting import pyplot
 
 
-def quality_figure(rows, scene, epsilon):
-    """SSIM and relMSE against total seconds, one line per method, log time axis (thesis Figures 8.1/8.3).
+def quality_figure(rows, scene, epsilon, summary=None, fit=None):
+    """SSIM and relMSE against median seconds, one line per method, log time axis (thesis Figures 8.1/8.3).
 
     Parameters
     ----------
     rows : list of dict
-        The comparison's rows (means over seeds are plotted).
+        The comparison's rows (means over seeds are plotted when there is no summary).
     scene : str
         Named in the titles.
     epsilon : float
         The relMSE's epsilon, named on its axis.
+    summary : list of dict, optional
+        The equal-time protocol's records per (method, spp): each point is a
+        (method, spp) at its median time, with min-max time bars and the
+        95% interval of its mean relMSE over seeds.
+    fit : dict, optional
+        PT's fit as ``compare.json`` holds it (``intercept_seconds``,
+        ``seconds_per_spp``, ``relmse_per_seed``, ``spp_range``): drawn as
+        a dashed curve on the relMSE panel.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     plot = pyplot()
-    figure, (left, right) = plot.subplots(1, 2, figsize=(11, 4.2))
+    figure, (left, right) = plot.subplots(1, 2, figsize=(12.5, 4.4))
     for method in methods_in_order(rows):
-        method_rows = [row for row in rows if row["method"] == method]
-        for axis, quantity in ((left, "ssim"), (right, "relmse")):
-            curve = mean_curve(method_rows, quantity)
-            axis.plot([point[0] for point in curve], [point[1] for point in curve], marker="o", label=method)
-    left.set(xscale="log", xlabel="seconds (total, kernels warm)", ylabel="SSIM", title=f"{scene}: SSIM vs time")
-    right.set(xscale="log", yscale="log", xlabel="seconds (total, kernels warm)",
-              ylabel=f"relMSE (epsilon = {epsilon:g})", title=f"{scene}: relMSE vs time")
+        records = [record for record in summary or [] if record["method"] == method]
+        if not records:
+            method_rows = [row for row in rows if row["method"] == method]
+            for axis, quantity in ((left, "ssim"), (right, "relmse")):
+                curve = mean_curve(method_rows, quantity)
+                axis.plot([point[0] for point in curve], [point[1] for point in curve], marker="o", label=method)
+            continue
+        records = sorted(records, key=lambda record: record["seconds_total"])
+        seconds = np.array([record["seconds_total"] for record in records])
+        bars = np.array([[record["seconds_total"] - record["seconds_total_min"] for record in records],
+                         [record["seconds_total_max"] - record["seconds_total"] for record in records]])
+        line, = left.plot(seconds, [record["ssim"] for record in records], marker="o", label=method)
+        left.errorbar(seconds, [record["ssim"] for record in records], xerr=bars, fmt="none", ecolor=line.get_color(),
+                      alpha=0.6)
+        relmse = np.array([record["relmse"] for record in records])
+        low = np.array([record["relmse_ci_low"] for record in records], dtype=float)
+        high = np.array([record["relmse_ci_high"] for record in records], dtype=float)
+        yerr = np.where(np.isfinite(low), [relmse - np.maximum(low, relmse * 1e-3), high - relmse], 0.0)
+        right.errorbar(seconds, relmse, xerr=bars, yerr=yerr, marker="o", color=line.get_color(), label=method,
+                       capsize=2)
+    if fit:
+        spps = np.geomspace(fit["spp_range"][0], fit["spp_range"][1], 64)
+        c = np.mean([value["c"] for value in fit["relmse_per_seed"].values()]) if fit["relmse_per_seed"] else None
+        if c is not None:
+            floor = np.mean([value["floor"] for value in fit["relmse_per_seed"].values()])
+            right.plot(fit["intercept_seconds"] + fit["seconds_per_spp"] * spps, c / spps + floor, "k--", lw=1,
+                       label=f"PT fit: {c:.3g}/spp + {floor:.2g}")
+    left.set(xscale="log", xlabel="seconds (median of repeats, kernels warm)", ylabel="SSIM",
+             title=f"{scene}: SSIM vs time")
+    right.set(xscale="log", yscale="log", xlabel="seconds (median of repeats, kernels warm)",
+              ylabel=f"relMSE (epsilon = {epsilon:g}), 95% over seeds", title=f"{scene}: relMSE vs time")
     for axis in (left, right):
         axis.grid(True, which="both", alpha=0.3)
-        if axis.get_legend_handles_labels()[0]:
-            axis.legend()
+    handles, labels = right.get_legend_handles_labels()
+    if handles:
+        figure.legend(handles, labels, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small")
     figure.tight_layout()
     return figure
 

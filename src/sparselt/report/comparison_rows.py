@@ -15,8 +15,11 @@ import numpy as np
 #: The columns every row has, in ``results.csv``'s order.
 RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", "seconds_reconstruction",
                   "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
-#: Columns after :data:`RESULT_COLUMNS`: the contrast ratio and PT's quality at the row's time.
-EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time")
+#: Columns after :data:`RESULT_COLUMNS`: the contrast ratio, PT's quality at the row's time, the repeated
+#: timings and the row's (method, spp) verdict (the equal-time protocol, :mod:`sparselt.experiments.equal_time`).
+EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time", "seconds_total_min",
+                 "seconds_total_max", "timing_repeats", "timing_noisy", "relmse_ratio", "verdict",
+                 "speedup_equal_quality")
 #: ``results.csv``'s column order; any other key of the rows follows, sorted.
 COLUMN_ORDER = RESULT_COLUMNS + EXTRA_COLUMNS
 

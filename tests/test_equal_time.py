@@ -1,0 +1,148 @@
+"""The equal-time protocol (issue 20): PT's fits, ratio intervals, per-budget verdicts, equal-quality speed-up.
+
+Rows are synthetic (plain dicts, as a comparison's cells hold them), so every
+expected value is known exactly.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from sparselt.experiments.equal_time import (
+    add_equal_time_columns,
+    fit_baseline,
+    fit_relmse,
+    mean_interval,
+    ratio_interval,
+    summarize,
+    verdict,
+)
+from sparselt.report.comparison import equal_time_verdicts, verdict_sentence
+
+SEEDS = (1, 2, 3)
+
+
+def pt_rows(spps=(8, 16, 32, 64, 128), intercept=0.05, slope=0.01, c=(0.5, 0.55, 0.45), floor=0.001):
+    """PT rows exactly on t = a + b spp and relMSE = c_seed / spp + floor."""
+    return [{"method": "pt", "spp": spp, "seed": seed, "seconds_total": intercept + slope * spp,
+             "relmse": c[index] / spp + floor, "ssim": 1 - 1 / math.sqrt(spp)}
+            for spp in spps for index, seed in enumerate(SEEDS)]
+
+
+def method_rows(name, spp, seconds, relmses):
+    return [{"method": name, "spp": spp, "seed": seed, "seconds_total": seconds, "relmse": relmse, "ssim": 0.9}
+            for seed, relmse in zip(SEEDS, relmses)]
+
+
+def test_relmse_fit_recovers_c_and_floor_exactly():
+    spps = np.array([4, 8, 16, 32, 64])
+    c, floor = fit_relmse(spps, 0.3 / spps + 0.002)
+    assert c == pytest.approx(0.3, rel=1e-9) and floor == pytest.approx(0.002, rel=1e-7)
+    c, floor = fit_relmse(spps, 0.3 / spps)  # no floor: a fitted floor below 0 is refitted at 0
+    assert floor >= 0 and c == pytest.approx(0.3, rel=1e-6)
+
+
+def test_baseline_fit_gives_pt_at_any_time_within_its_ladder():
+    fit = fit_baseline(pt_rows(), "pt")
+    assert (fit.intercept, fit.slope) == (pytest.approx(0.05), pytest.approx(0.01))
+    assert fit.time_residual < 1e-9 and fit.spp_range == (8, 128)
+    seconds = 0.05 + 0.01 * 50  # PT at 50 spp, between ladder points
+    assert fit.relmse_at(seconds, 2) == pytest.approx(0.55 / 50 + 0.001, rel=1e-6)
+    assert math.isnan(fit.relmse_at(0.05 + 0.01 * 200, 1))  # beyond the ladder: nothing extrapolated
+    assert fit.seconds_for_relmse(0.5 / 25 + 0.001) == pytest.approx(0.05 + 0.01 * 25, rel=1e-6)
+    assert fit.seconds_for_relmse(0.0005) == math.inf  # below PT's floor
+    assert fit_baseline(pt_rows(spps=(8,)), "pt") is None
+
+
+def test_mean_interval_is_the_student_t_interval():
+    values = [1.0, 2.0, 4.0]
+    mean, low, high = mean_interval(values)
+    half = 4.302652729911275 * np.std(values, ddof=1) / math.sqrt(3)  # t_{0.975, 2}
+    assert (mean, low, high) == (pytest.approx(7 / 3), pytest.approx(7 / 3 - half), pytest.approx(7 / 3 + half))
+    assert all(math.isnan(bound) for bound in mean_interval([3.0])[1:])
+
+
+def test_ratio_interval_covers_the_true_ratio_about_95_percent_of_the_time():
+    """400 experiments of 5 paired seeds with a true ratio of 0.8: coverage within 3 binomial standard errors."""
+    rng = np.random.default_rng(20)
+    covered, trials = 0, 400
+    for _ in range(trials):
+        denominator = rng.lognormal(np.log(0.02), 0.3, 5)
+        numerator = 0.8 * rng.lognormal(np.log(0.02), 0.3, 5)  # the same law: the ratio of means is 0.8
+        _, low, high = ratio_interval(numerator, denominator)
+        covered += low <= 0.8 <= high
+    rate = covered / trials
+    assert abs(rate - 0.95) <= 3 * math.sqrt(0.95 * 0.05 / trials) + 0.02, rate
+
+
+def test_verdict_from_the_interval():
+    assert verdict(0.7, 0.9) == "wins" and verdict(1.1, 1.3) == "loses" and verdict(0.9, 1.2) == "within noise"
+    assert verdict(math.nan, math.nan) == "one seed"
+
+
+def test_per_budget_verdicts_that_flip_are_said_per_budget():
+    """A method that loses at 16 spp and wins at 40: the sentence says both, no mean over budgets."""
+    rows = pt_rows()
+    at = 0.05 + 0.01 * 40  # the method's times: PT reaches 40 spp then
+    pt_relmse = [c / 40 + 0.001 for c in (0.5, 0.55, 0.45)]
+    rows += method_rows("flipper", 16, at, [2.1 * value for value in pt_relmse])
+    rows += method_rows("flipper", 40, at, [0.84 * value * factor for value, factor in zip(pt_relmse,
+                                                                                             (0.98, 1.0, 1.02))])
+    fit = add_equal_time_columns(rows, baseline="pt")
+    summary = summarize(rows, fit, baseline="pt")
+    by_spp = {record["spp"]: record for record in summary if record["method"] == "flipper"}
+    assert by_spp[16]["verdict"] == "loses" and by_spp[16]["relmse_ratio"] == pytest.approx(2.1, rel=1e-6)
+    assert by_spp[40]["verdict"] == "wins" and by_spp[40]["relmse_ratio"] == pytest.approx(0.84, rel=1e-3)
+    sentence = verdict_sentence("flipper", summary)
+    assert "wins at 40 spp (relMSE 0.84x [" in sentence and "loses at 16 spp (relMSE 2.10x [" in sentence
+    methods = {"pt": {"baseline": True}, "flipper": {"baseline": False}}
+    assert equal_time_verdicts(summary, methods=methods) == [sentence]
+
+
+def test_equal_quality_speedup_from_the_fit():
+    rows = pt_rows()
+    relmse = 0.5 / 64 + 0.001  # what PT reaches at 64 spp, at 0.69 s; the method gets it in 0.2 s
+    rows += method_rows("fast", 8, 0.2, [relmse * f for f in (0.99, 1.0, 1.01)])
+    summary = summarize(rows, add_equal_time_columns(rows, baseline="pt"), baseline="pt")
+    record = next(record for record in summary if record["method"] == "fast")
+    pt_seconds = 0.05 + 0.01 * (0.5 / (relmse - 0.001))
+    assert record["speedup_equal_quality"] == pytest.approx(pt_seconds / 0.2, rel=1e-6)
+    assert record["speedup_ci_low"] < record["speedup_equal_quality"] < record["speedup_ci_high"]
+    assert all(row["verdict"] == record["verdict"] for row in rows if row["method"] == "fast")
+
+
+def test_a_time_beyond_the_ladder_has_no_pt_value_and_says_so():
+    rows = pt_rows() + method_rows("slow", 8, 10.0, [0.01, 0.011, 0.012])
+    summary = summarize(rows, add_equal_time_columns(rows, baseline="pt"), baseline="pt")
+    record = next(record for record in summary if record["method"] == "slow")
+    assert record["verdict"] == "no PT value" and record["relmse_ratio"] == ""
+    assert "has no equal-time PT value" in verdict_sentence("slow", summary)
+
+
+def test_the_reference_variance_from_its_passes_matches_independent_references(tmp_path):
+    """16 independent 256 spp references (4 passes each) of the real Cornell box: the variance each estimates from
+    its own passes agrees with the spread between them. Per pixel and channel the ratio of the two estimates is
+    noisy (chi-square with 15 and 48 degrees of freedom) and the radiance heavy-tailed, so the test takes the
+    median ratio over the lit pixels: near 1 (measured 1.03; bounds far outside its spread)."""
+    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.baseline import cached_reference, reference_relmse_floor
+    from sparselt.rendering.scenes import get_scene
+
+    scene = mitsuba_backend.MitsubaScene(get_scene("cornell-box"), (16, 16))
+    images, variances = [], []
+    for seed in range(16):
+        image, record = cached_reference(scene, "path", spp=256, seed=seed, progress=False,
+                                         cache_directory=str(tmp_path))
+        images.append(image.astype(np.float64))
+        variances.append(record["variance"].astype(np.float64))
+    empirical = np.var(np.stack(images), axis=0, ddof=1)
+    estimated = np.mean(np.stack(variances), axis=0)
+    lit = empirical > 0
+    assert 0.8 < np.median(estimated[lit] / empirical[lit]) < 1.3
+    again, record = cached_reference(scene, "path", spp=256, seed=0, progress=False, cache_directory=str(tmp_path))
+    assert record["cached"] and np.array_equal(record["variance"], variances[0].astype(np.float32))
+    floor = reference_relmse_floor(images[0], variances[0], epsilon=0.01)
+    assert floor == pytest.approx(np.mean(variances[0] / (images[0] ** 2 + 0.01)))
+    _, single = cached_reference(scene, "path", spp=64, seed=0, progress=False, cache_directory=str(tmp_path))
+    assert np.isnan(reference_relmse_floor(images[0], single["variance"], epsilon=0.01))  # one pass: unknown
