@@ -19,7 +19,7 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sparselt sample --scene dof-sculptures --kind dof --shape 128,128,16,16 --spp 16 --seed 1 --out $(DEMO)/signal --overwrite
 	$(BIN)/sparselt show $(DEMO)/signal --out $(DEMO)/pictures --overwrite
-	$(BIN)/sparselt analyze $(DEMO)/signal --out $(DEMO)/analysis --overwrite
+	$(BIN)/sparselt analyze $(DEMO)/signal --gamma 1,0.25 --out $(DEMO)/analysis --overwrite
 	# 64x64 pixels (a quarter of the signal's image plane), 3 seeds and 2 timing repeats per cell, so that the
 	# verdicts carry intervals and the demo fits in 3 minutes; PT's ladder is automatic (up to 1024 spp here).
 	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 64,64,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis,bilateral,cosamp-bilateral,oidn --spp 16,40,81 --seeds 1,2,3 --timing-repeats 2 --reference-spp 1024 --out $(DEMO)/compare --overwrite
