@@ -146,3 +146,23 @@ def test_the_reference_variance_from_its_passes_matches_independent_references(t
     assert floor == pytest.approx(np.mean(variances[0] / (images[0] ** 2 + 0.01)))
     _, single = cached_reference(scene, "path", spp=64, seed=0, progress=False, cache_directory=str(tmp_path))
     assert np.isnan(reference_relmse_floor(images[0], single["variance"], epsilon=0.01))  # one pass: unknown
+
+
+def test_timing_uncertainty_widens_the_ratio_interval():
+    """PT is read at the method's time divided and multiplied by 1 + d: a spread of repeats widens the interval."""
+    at = 0.05 + 0.01 * 40
+    pt_relmse = [c / 40 + 0.001 for c in (0.5, 0.55, 0.45)]
+    steady = pt_rows() + method_rows("m", 16, at, [0.9 * v * f for v, f in zip(pt_relmse, (0.98, 1.0, 1.02))])
+    shaky = [dict(row) for row in steady]
+    for row in shaky:
+        if row["method"] == "m":
+            row.update(seconds_total_min=0.8 * at, seconds_total_max=1.2 * at)
+    records = {}
+    for name, rows in (("steady", steady), ("shaky", shaky)):
+        summary = summarize(rows, add_equal_time_columns(rows, baseline="pt"), baseline="pt")
+        records[name] = next(record for record in summary if record["method"] == "m")
+    assert records["steady"]["timing_uncertainty"] == pytest.approx(0.0, abs=1e-9)
+    assert records["shaky"]["timing_uncertainty"] == pytest.approx(0.2, rel=1e-6)
+    assert records["steady"]["verdict"] == "wins"  # 0.9x with a tight interval
+    assert records["shaky"]["relmse_ratio_ci_low"] < records["steady"]["relmse_ratio_ci_low"]
+    assert records["shaky"]["relmse_ratio_ci_high"] > records["steady"]["relmse_ratio_ci_high"] > 0.9

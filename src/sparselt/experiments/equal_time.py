@@ -20,7 +20,9 @@ with the median of its repeated timings):
    and its 95% Student-t interval; the ratio of that mean to PT's mean relMSE
    at the same (per-seed median) times, with a 95% interval by the delta
    method on the log ratio (t quantile, ``n - 1`` degrees of freedom; the
-   seeds are paired). Both relMSEs first lose the reference's own floor
+   seeds are paired), widened by the timing's own uncertainty
+   (:func:`timing_uncertainty`: PT read at the method's time divided and
+   multiplied by ``1 + d``). Both relMSEs first lose the reference's own floor
    (``reference_relmse_floor``, from the spread of the reference's passes):
    the ratio is of ``relmse_debiased``. Where either is not above the floor
    the verdict is ``reference-limited``. The same for SSIM (PT's over the method's, so that
@@ -240,7 +242,7 @@ def add_equal_time_columns(rows, *, baseline="pt"):
 
 
 SUMMARY_COLUMNS = ("method", "spp", "seeds", "seconds_total", "seconds_total_min", "seconds_total_max",
-                   "timing_noisy", "relmse", "relmse_ci_low", "relmse_ci_high", "relmse_pt_equal_time",
+                   "timing_noisy", "timing_uncertainty", "relmse", "relmse_ci_low", "relmse_ci_high", "relmse_pt_equal_time",
                    "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high", "verdict", "ssim",
                    "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high", "ssim_verdict",
                    "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high")
@@ -273,6 +275,21 @@ def summarize(rows, fit, *, baseline="pt"):
     return summary
 
 
+def timing_uncertainty(group, fit):
+    """The relative uncertainty of a cell's time: its repeats' spread and PT's time-fit residual, combined.
+
+    ``d = sqrt(s^2 + e^2)``: ``s`` the largest half-range of the repeats
+    relative to their median over the cell's seeds, ``e`` the root-mean-square
+    relative residual of PT's ``a + b spp`` fit. Sub-second timings on shared
+    machines move by tens of percent between runs; the seeds' spread alone
+    does not see it.
+    """
+    spreads = [(row.get("seconds_total_max", row["seconds_total"]) - row.get("seconds_total_min", row["seconds_total"]))
+               / (2 * row["seconds_total"]) for row in group if row["seconds_total"] > 0]
+    spread = max(spreads, default=0.0)
+    return float(math.hypot(spread, fit.time_residual))
+
+
 def _compare_with_baseline(record, group, fit, is_baseline):
     empty = dict.fromkeys(("relmse_pt_equal_time", "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high",
                            "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high",
@@ -293,6 +310,17 @@ def _compare_with_baseline(record, group, fit, is_baseline):
         record.update(relmse_ratio=float(np.mean(numerator) / np.mean(denominator)), verdict="reference-limited")
     else:
         ratio, low, high = ratio_interval(numerator, denominator)
+        # The time is uncertain too: PT's value is read at the method's time t, which moves between runs. Read it
+        # at t / (1 + d) and t (1 + d), d the timing uncertainty, and keep the wider bounds.
+        spread = timing_uncertainty(group, fit)
+        record["timing_uncertainty"] = spread
+        if math.isfinite(low) and spread > 0:
+            early = [fit.relmse_at(row["seconds_total"] / (1 + spread), row["seed"]) - floor for row in group]
+            late = [fit.relmse_at(min(row["seconds_total"] * (1 + spread), fit.reached_seconds), row["seed"]) - floor
+                    for row in group]
+            if all(value > 0 for value in early + late):
+                low = min(low, ratio_interval(numerator, early)[1])
+                high = max(high, ratio_interval(numerator, late)[2])
         record.update(relmse_ratio=ratio, relmse_ratio_ci_low=low, relmse_ratio_ci_high=high,
                       verdict=verdict(low, high))
     if not any(value in ("", None) for value in pt_ssim):
@@ -310,4 +338,4 @@ def _compare_with_baseline(record, group, fit, is_baseline):
 
 
 __all__ = ["CONFIDENCE", "NOISY_TIMING_RATIO", "SUMMARY_COLUMNS", "VERDICTS", "BaselineFit", "add_equal_time_columns",
-           "fit_baseline", "fit_relmse", "mean_interval", "ratio_interval", "summarize", "verdict"]
+           "fit_baseline", "fit_relmse", "mean_interval", "ratio_interval", "summarize", "timing_uncertainty", "verdict"]
