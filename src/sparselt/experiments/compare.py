@@ -571,7 +571,8 @@ class _CellRunner:
 
     def ladder(self, baseline):
         """PT at spp = s0, 2 s0, 4 s0, ... (s0 below the smallest budget) for every seed, until its median time
-        passes every other method's median time or the cap :attr:`ComparisonConfig.pt_ladder_max_spp`."""
+        passes every other method's median time or the cap :attr:`ComparisonConfig.pt_ladder_max_spp`; then
+        s0 / 2, s0 / 4, ... down to 1 spp while PT's smallest rung is slower than the fastest method."""
         config = self.config
         others = [record["row"] for name, record in self.folder.cells().items()
                   if record["row"]["method"] != baseline.name and record["row"]["method"] in config.methods]
@@ -588,8 +589,18 @@ class _CellRunner:
                 capped = True
                 break
             spp *= 2
+        # Downwards too, while a method is faster than PT's smallest rung: nothing is extrapolated at either end.
+        fastest = min((row["seconds_total"] for row in others), default=math.inf)
+        spp = steps[0]
+        while spp > 1:
+            rows = [self.folder.cell(cell_name(baseline.name, spp, seed))["row"] for seed in config.seeds]
+            if float(np.median([row["seconds_total"] for row in rows])) <= fastest:
+                break
+            spp //= 2
+            self.run(baseline, [(spp, seed) for seed in config.seeds])
+            steps.insert(0, spp)
         return {"spps": steps, "target_seconds": target, "reached_seconds": reached, "capped": capped,
-                "max_spp": config.pt_ladder_max_spp}
+                "max_spp": config.pt_ladder_max_spp, "fastest_seconds": fastest}
 
 
 def method_record(method, options):

@@ -140,8 +140,8 @@ class BaselineFit:
         return self.intercept + self.slope * spp
 
     def covers(self, seconds):
-        """Whether the ladder reaches ``seconds`` (no extrapolation beyond its largest budget)."""
-        return seconds <= self.reached_seconds * (1 + 1e-9)
+        """Whether ``seconds`` lies within the ladder's fitted times (no extrapolation at either end)."""
+        return self.seconds_at(self.spp_range[0]) * (1 - 1e-9) <= seconds <= self.reached_seconds * (1 + 1e-9)
 
     def relmse_at(self, seconds, seed):
         """PT's relMSE at ``seconds`` for ``seed`` (its own seed's fit); ``nan`` beyond the ladder."""
@@ -318,6 +318,8 @@ def _compare_with_baseline(record, group, fit, is_baseline):
             early = [fit.relmse_at(row["seconds_total"] / (1 + spread), row["seed"]) - floor for row in group]
             late = [fit.relmse_at(min(row["seconds_total"] * (1 + spread), fit.reached_seconds), row["seed"]) - floor
                     for row in group]
+            early = [fit.relmse_at(max(row["seconds_total"] / (1 + spread), fit.seconds_at(fit.spp_range[0])),
+                                   row["seed"]) - floor for row in group]
             if all(value > 0 for value in early + late):
                 low = min(low, ratio_interval(numerator, early)[1])
                 high = max(high, ratio_interval(numerator, late)[2])
