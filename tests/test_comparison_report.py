@@ -62,13 +62,8 @@ def _rows(methods=("pt", "cosamp"), spps=(40, 81), seeds=(1, 2)):
     return rows
 
 
-def _summary(rows):
-    from sparselt.experiments.equal_time import add_equal_time_columns, summarize
-
-    return summarize(rows, add_equal_time_columns(rows, baseline="pt"), baseline="pt")
-
-
-def _summary_of(rows, baseline):
+def _summary(rows, baseline="pt"):
+    """The equal-time protocol's records of the rows (the report is a sink; the protocol lives in experiments/)."""
     from sparselt.experiments.equal_time import add_equal_time_columns, summarize
 
     return summarize(rows, add_equal_time_columns(rows, baseline=baseline), baseline=baseline)
@@ -175,7 +170,7 @@ def test_reports_choose_rows_by_role_not_by_name():
     thesis = THESIS_TABLES["dof-sculptures"][2]
     assert by_row["my-sparse", "40"][-4:] == [f"{value:g}" for value in thesis[40]]
     assert by_row["adaptive-guide", "40"][-4:] == ["-"] * 4
-    compared = {label for label, _ in equal_time_table(_summary_of(rows, "reference-tracer"), methods=methods).rows}
+    compared = {label for label, _ in equal_time_table(_summary(rows, "reference-tracer"), methods=methods).rows}
     assert compared == {"adaptive-guide", "my-sparse"}  # the baseline is not compared with itself
     ours, _ = table_6(rows, "cornell-caustics", _config(kind="path"), methods=methods)
     assert {label for label, _ in ours.rows} == {"adaptive-guide"}
