@@ -89,9 +89,13 @@ def test_per_budget_verdicts_that_flip_are_said_per_budget():
     rows += method_rows("flipper", 16, at, [2.1 * value for value in pt_relmse])
     rows += method_rows("flipper", 40, at, [0.84 * value * factor for value, factor in zip(pt_relmse,
                                                                                              (0.98, 1.0, 1.02))])
+    for row in rows:  # FLIP falling with spp for PT; the method's half of PT's
+        row["flip"] = 0.5 / math.sqrt(row["spp"]) if row["method"] == "pt" else 0.25 / math.sqrt(40)
     fit = add_equal_time_columns(rows, baseline="pt")
     summary = summarize(rows, fit, baseline="pt")
     by_spp = {record["spp"]: record for record in summary if record["method"] == "flipper"}
+    # PT reaches 40 spp at the method's time; its FLIP is interpolated linearly in log spp between 32 and 64
+    assert by_spp[40]["flip_ratio"] == pytest.approx(0.5, rel=0.02)
     assert by_spp[16]["verdict"] == "loses" and by_spp[16]["relmse_ratio"] == pytest.approx(2.1, rel=1e-6)
     assert by_spp[40]["verdict"] == "wins" and by_spp[40]["relmse_ratio"] == pytest.approx(0.84, rel=1e-3)
     sentence = verdict_sentence("flipper", summary)

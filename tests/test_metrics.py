@@ -314,3 +314,16 @@ def test_image_ssim_is_lower_for_a_noisier_image():
     values = [image_ssim(np.abs(reference * (1 + level * noise)), reference) for level in (0.05, 0.2, 0.5)]
     assert values[0] < 1.0
     assert values[0] > values[1] > values[2], values
+
+
+def test_flip_is_zero_for_the_reference_and_grows_with_the_error():
+    from sparselt.analysis.metrics import flip_error
+
+    reference = hdr_image(7)
+    rng = np.random.default_rng(8)
+    errors = [flip_error(reference * np.exp(level * rng.standard_normal(reference.shape)), reference)
+              for level in (0.05, 0.2, 0.8)]
+    assert flip_error(reference, reference) == 0.0
+    assert 0 < errors[0] < errors[1] < errors[2] <= 1
+    with pytest.raises(ValueError, match="FLIP needs two"):
+        flip_error(reference[..., 0], reference[..., 0])

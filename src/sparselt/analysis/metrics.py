@@ -45,6 +45,7 @@ from ..images import luminance, reference_exposure, srgb_tonemap  # noqa: F401  
 
 __all__ = [
     "display_image",
+    "flip_error",
     "image_ssim",
     "peak_signal_to_noise_ratio",
     "reference_exposure",
@@ -430,6 +431,33 @@ def display_image(image, reference):
     if image.ndim != 3 or image.shape[-1] != 3:
         raise ValueError(f"images must be (height, width, 3) linear RGB; got shape {image.shape}")
     return srgb_tonemap(image, reference_exposure(reference))
+
+
+def flip_error(image, reference):
+    """Mean HDR-FLIP error of a linear RGB image against a linear RGB reference (0 = indistinguishable).
+
+    FLIP (Andersson et al. 2020, 2021) models what a viewer notices flipping
+    between the two images; its HDR mode tone-maps both at the exposures
+    spanning the reference's range and keeps the worst error per pixel. Both
+    images must be ``(height, width, 3)`` and are clipped at 0 (FLIP takes
+    non-negative radiance); computed by NVIDIA's ``flip-evaluator`` package
+    at its default 67 pixels per degree.
+
+    References
+    ----------
+    Andersson, P., Nilsson, J., Shirley, P. and Akenine-Möller, T. (2021).
+    Visualizing errors in rendered high dynamic range images. Eurographics.
+    """
+    import flip_evaluator
+
+    image, reference = np.asarray(image), np.asarray(reference)
+    if image.shape != reference.shape or image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"FLIP needs two (height, width, 3) images of one shape, got {image.shape} and "
+                         f"{reference.shape}")
+    test = np.ascontiguousarray(np.maximum(image, 0), dtype=np.float32)
+    target = np.ascontiguousarray(np.maximum(reference, 0), dtype=np.float32)
+    _, mean, _ = flip_evaluator.evaluate(target, test, "HDR", applyMagma=False, computeMeanError=True)
+    return float(mean)
 
 
 def image_ssim(image, reference):

@@ -45,6 +45,7 @@ import numpy as np
 
 from ..analysis.metrics import (
     contrast_ratio,
+    flip_error,
     image_ssim,
     luminance_ratio,
     reference_exposure,
@@ -350,13 +351,14 @@ def caustic_mask(loaded, reference, *, spp, max_depth, seed=0, fraction=0.3):
 
 
 def quality(image, reference, mask=None):
-    """SSIM (the project's HDR convention), relMSE (epsilon 0.01), luminance and contrast ratios.
+    """SSIM (the project's HDR convention), relMSE (epsilon 0.01), HDR-FLIP, luminance and contrast ratios.
 
     With a boolean ``mask`` (height, width), also ``relmse_caustic``: the
     relMSE over the masked pixels only.
     """
     record = {
         "ssim": image_ssim(image, reference),
+        "flip": flip_error(image, reference),
         "relmse": relative_mean_squared_error(image, reference, epsilon=RELMSE_EPSILON),
         "luminance_ratio": luminance_ratio(image, reference),
         "contrast_ratio": contrast_ratio(image, reference),
@@ -484,7 +486,7 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         record["status"] = "complete"
         record["seconds"] = {"total": total, "methods": method_seconds, "reference": reference_seconds,
                              "harness": harness, "of_which_scene_load": load_seconds,
-                             "of_which_reports": report_seconds}
+                             "of_which_reports": report_seconds, "of_which_metrics": runner.metric_seconds}
         record["harness_overhead_fraction"] = harness / total if total > 0 else 0.0
         folder.write_json(CONFIG_FILE, record)
         folder.complete(seconds=record["seconds"])
@@ -510,6 +512,7 @@ class _CellRunner:
         self.seconds = 0.0
         self.warm = set()
         self.floor = None
+        self.metric_seconds = 0.0
 
     def run(self, method, cells):
         """Run the cells of ``method`` not yet in the folder; return the rows of all of ``cells``."""
@@ -552,7 +555,9 @@ class _CellRunner:
         totals = [sum(seconds.values()) for _, seconds, _ in runs]
         median = sorted(range(len(runs)), key=totals.__getitem__)[len(runs) // 2]
         result, seconds = runs[0][0], runs[median][1]
+        metrics_start = time.perf_counter()
         row = _row(method.name, spp, seed, result, seconds, self.reference, self.mask)
+        self.metric_seconds += time.perf_counter() - metrics_start  # harness time, never a method's
         if self.floor is not None:
             row.update(reference_relmse_floor=self.floor, relmse_debiased=row["relmse"] - self.floor,
                        reference_limited=bool(row["relmse"] < 2 * self.floor))

@@ -20,7 +20,8 @@ with the median of its repeated timings):
    and its 95% Student-t interval; the ratio of that mean to PT's mean relMSE
    at the same (per-seed median) times, with a 95% interval by the delta
    method on the log ratio (t quantile, ``n - 1`` degrees of freedom; the
-   seeds are paired), widened by the timing's own uncertainty
+   seeds are paired; SSIM as PT's over the method's, HDR-FLIP as the
+   method's over PT's, so that below 1 is better for all three), widened by the timing's own uncertainty
    (:func:`timing_uncertainty`: PT read at the method's time divided and
    multiplied by ``1 + d``). Both relMSEs first lose the reference's own floor
    (``reference_relmse_floor``, from the spread of the reference's passes):
@@ -116,8 +117,8 @@ class BaselineFit:
         Root-mean-square relative residual of the time fit.
     relmse : dict
         ``{seed: (c, floor)}``: ``relMSE = c / spp + floor``.
-    ssim : dict
-        ``{seed: [(spp, ssim), ...]}`` sorted by spp.
+    ssim, flip : dict
+        ``{seed: [(spp, value), ...]}`` sorted by spp (``flip`` empty for rows without FLIP).
     spp_range : tuple of int
         The ladder's smallest and largest spp.
     reached_seconds : float
@@ -131,7 +132,7 @@ class BaselineFit:
     ssim: dict
     spp_range: tuple
     reached_seconds: float
-    samples: dict = field(default_factory=dict)
+    flip: dict = field(default_factory=dict)
 
     def spp_at(self, seconds):
         return (seconds - self.intercept) / self.slope
@@ -152,10 +153,17 @@ class BaselineFit:
         return c / spp + floor
 
     def ssim_at(self, seconds, seed):
-        """PT's SSIM at ``seconds``: interpolated in log spp on the seed's ladder (held below its first budget)."""
-        if not self.covers(seconds) or seed not in self.ssim:
+        """PT's SSIM at ``seconds``: interpolated in log spp on the seed's ladder."""
+        return self._interpolated(self.ssim, seconds, seed)
+
+    def flip_at(self, seconds, seed):
+        """PT's FLIP at ``seconds``: interpolated in log spp on the seed's ladder."""
+        return self._interpolated(self.flip, seconds, seed)
+
+    def _interpolated(self, series, seconds, seed):
+        if not self.covers(seconds) or seed not in series:
             return math.nan
-        points = self.ssim[seed]
+        points = series[seed]
         spp = max(self.spp_at(seconds), 1e-9)
         return float(np.interp(math.log(spp), [math.log(p) for p, _ in points], [v for _, v in points]))
 
@@ -196,14 +204,17 @@ def fit_baseline(rows, baseline):
         slope, intercept = float(np.mean(times) / np.mean(spps)), 0.0
     fitted = intercept + slope * np.asarray(spps, np.float64)
     residual = float(np.sqrt(np.mean(((np.asarray(times) - fitted) / fitted) ** 2)))
-    relmse, ssim = {}, {}
+    relmse, ssim, flip = {}, {}, {}
     for seed in sorted({row["seed"] for row in pt}):
         seed_rows = sorted((row for row in pt if row["seed"] == seed), key=lambda row: row["spp"])
         if len(seed_rows) >= 2:
             relmse[seed] = fit_relmse([row["spp"] for row in seed_rows], [row["relmse"] for row in seed_rows])
             ssim[seed] = [(row["spp"], row["ssim"]) for row in seed_rows]
+            if all("flip" in row for row in seed_rows):
+                flip[seed] = [(row["spp"], row["flip"]) for row in seed_rows]
     return BaselineFit(intercept=float(intercept), slope=float(slope), time_residual=residual, relmse=relmse,
-                       ssim=ssim, spp_range=(spps[0], spps[-1]), reached_seconds=float(intercept + slope * spps[-1]))
+                       ssim=ssim, flip=flip, spp_range=(spps[0], spps[-1]),
+                       reached_seconds=float(intercept + slope * spps[-1]))
 
 
 def add_equal_time_columns(rows, *, baseline="pt"):
@@ -229,15 +240,14 @@ def add_equal_time_columns(rows, *, baseline="pt"):
     """
     fit = fit_baseline(rows, baseline)
     for row in rows:
-        row["relmse_pt_equal_time"] = row["ssim_pt_equal_time"] = ""
+        row["relmse_pt_equal_time"] = row["ssim_pt_equal_time"] = row["flip_pt_equal_time"] = ""
         if row["method"] == baseline or fit is None:
             continue
-        relmse = fit.relmse_at(row["seconds_total"], row["seed"])
-        ssim = fit.ssim_at(row["seconds_total"], row["seed"])
-        if math.isfinite(relmse):
-            row["relmse_pt_equal_time"] = relmse
-        if math.isfinite(ssim):
-            row["ssim_pt_equal_time"] = ssim
+        for quantity, value in (("relmse", fit.relmse_at(row["seconds_total"], row["seed"])),
+                                ("ssim", fit.ssim_at(row["seconds_total"], row["seed"])),
+                                ("flip", fit.flip_at(row["seconds_total"], row["seed"]))):
+            if math.isfinite(value):
+                row[f"{quantity}_pt_equal_time"] = value
     return fit
 
 
@@ -245,6 +255,8 @@ SUMMARY_COLUMNS = ("method", "spp", "seeds", "seconds_total", "seconds_total_min
                    "timing_noisy", "timing_uncertainty", "relmse", "relmse_ci_low", "relmse_ci_high", "relmse_pt_equal_time",
                    "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high", "verdict", "ssim",
                    "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high", "ssim_verdict",
+                   "flip", "flip_pt_equal_time", "flip_ratio", "flip_ratio_ci_low", "flip_ratio_ci_high",
+                   "flip_verdict",
                    "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high")
 
 
@@ -264,6 +276,7 @@ def summarize(rows, fit, *, baseline="pt"):
             record["relmse"], record["relmse_ci_low"], record["relmse_ci_high"] = mean_interval(
                 [row["relmse"] for row in group])
             record["ssim"] = group_mean(group, "ssim")
+            record["flip"] = group_mean(group, "flip") if all("flip" in row for row in group) else ""
             _compare_with_baseline(record, group, fit, method == baseline)
             summary.append(record)
             for row in group:
@@ -293,8 +306,9 @@ def timing_uncertainty(group, fit):
 def _compare_with_baseline(record, group, fit, is_baseline):
     empty = dict.fromkeys(("relmse_pt_equal_time", "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high",
                            "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high",
+                           "flip_pt_equal_time", "flip_ratio", "flip_ratio_ci_low", "flip_ratio_ci_high",
                            "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high"), "")
-    record.update(empty, verdict="baseline" if is_baseline else "no PT value", ssim_verdict="")
+    record.update(empty, verdict="baseline" if is_baseline else "no PT value", ssim_verdict="", flip_verdict="")
     if is_baseline or fit is None:
         return
     pt_relmse = [row.get("relmse_pt_equal_time") for row in group]
@@ -330,6 +344,12 @@ def _compare_with_baseline(record, group, fit, is_baseline):
         ratio, low, high = ratio_interval(pt_ssim, [row["ssim"] for row in group])  # PT over method: < 1 is better
         record.update(ssim_ratio=ratio, ssim_ratio_ci_low=low, ssim_ratio_ci_high=high,
                       ssim_verdict=verdict(low, high))
+    pt_flip = [row.get("flip_pt_equal_time") for row in group]
+    if record["flip"] != "" and not any(value in ("", None) for value in pt_flip) and min(pt_flip) > 0:
+        record["flip_pt_equal_time"] = float(np.mean(pt_flip))
+        ratio, low, high = ratio_interval([row["flip"] for row in group], pt_flip)  # method over PT: < 1 is better
+        record.update(flip_ratio=ratio, flip_ratio_ci_low=low, flip_ratio_ci_high=high,
+                      flip_verdict=verdict(low, high))
     seconds = record["seconds_total"]
     record["speedup_equal_quality"] = fit.seconds_for_relmse(record["relmse"]) / seconds
     low, high = record["relmse_ci_low"], record["relmse_ci_high"]

@@ -189,16 +189,18 @@ def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
         table_rows.append((record["method"], [
             str(record["spp"]), str(record["seeds"]), seconds, _with_interval(record, "relmse", 4),
             _number(record.get("relmse_pt_equal_time", ""), 4), _with_interval(record, "relmse_ratio"),
-            record["verdict"], _with_interval(record, "ssim_ratio"), _speedup_text(record)]))
+            record["verdict"], _with_interval(record, "ssim_ratio"), _with_interval(record, "flip_ratio"),
+            _speedup_text(record)]))
     return Table(
         caption="Equal-time quality against path tracing",
         columns=["spp", "seeds", "seconds (min-max)", "relMSE [95%]", "PT relMSE same time", "relMSE ratio [95%]",
-                 "verdict", "SSIM ratio [95%]", "speed-up at equal quality [95%]"],
-        kinds=[""] * 2 + ["ours"] * 7, rows=table_rows, label_header="method",
+                 "verdict", "SSIM ratio [95%]", "FLIP ratio [95%]", "speed-up at equal quality [95%]"],
+        kinds=[""] * 2 + ["ours"] * 8, rows=table_rows, label_header="method",
         notes=[f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). PT's "
                f"relMSE at a time comes from its fits (time = a + b spp; relMSE = c/spp + floor per seed) over "
                f"its automatic spp ladder. Ratios: mean over seeds over PT's mean at the same times, 95% delta-"
-               f"method interval; 'wins' or 'loses' only when the interval excludes 1. Speed-up: PT's time to "
+               f"method interval; 'wins' or 'loses' only when the interval excludes 1. SSIM ratio: PT's over the "
+               f"method's; FLIP ratio (HDR-FLIP): the method's over PT's; below 1 is better for every ratio. Speed-up: PT's time to "
                f"reach the method's relMSE over the method's time. relMSE epsilon = {epsilon}."])
 
 

@@ -17,7 +17,8 @@ RESULT_COLUMNS = ("method", "spp", "seed", "seconds_total", "seconds_sampling", 
                   "seconds_integration", "seconds_other", "path_samples", "ssim", "relmse", "luminance_ratio")
 #: Columns after :data:`RESULT_COLUMNS`: the contrast ratio, PT's quality at the row's time, the repeated
 #: timings and the row's (method, spp) verdict (the equal-time protocol, :mod:`sparselt.experiments.equal_time`).
-EXTRA_COLUMNS = ("contrast_ratio", "relmse_pt_equal_time", "ssim_pt_equal_time", "seconds_total_min",
+EXTRA_COLUMNS = ("contrast_ratio", "flip", "relmse_pt_equal_time", "ssim_pt_equal_time", "flip_pt_equal_time",
+                 "seconds_total_min",
                  "seconds_total_max", "timing_repeats", "timing_noisy", "relmse_ratio", "verdict",
                  "speedup_equal_quality")
 #: ``results.csv``'s column order; any other key of the rows follows, sorted.
