@@ -456,11 +456,9 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         floor = reference_relmse_floor(reference, reference_record["variance"], epsilon=RELMSE_EPSILON)
         record["reference_relmse_floor"] = floor if math.isfinite(floor) else None
 
-        runner = _CellRunner(folder, context, options, config, reference, mask, exposure, record, progress)
-        runner.floor = record["reference_relmse_floor"]
-        ordered = [method for method in methods if method.name != baseline]
-        ordered += [method for method in methods if method.name == baseline]
-        for method in ordered:
+        runner = _CellRunner(folder, context, options, config, reference, mask, exposure, record, progress,
+                             floor=record["reference_relmse_floor"])
+        for method in sorted(methods, key=lambda method: method.baseline):  # PT last: its ladder follows the others
             if method.name in config.methods:
                 runner.run(method, [(spp, seed) for seed in config.seeds for spp in config.spps])
         if any(method.name != baseline for method in methods):
@@ -506,12 +504,12 @@ class _CellRunner:
     allocation, caches), so the whole run is repeated.
     """
 
-    def __init__(self, folder, context, options, config, reference, mask, exposure, record, progress):
+    def __init__(self, folder, context, options, config, reference, mask, exposure, record, progress, *, floor):
         self.folder, self.context, self.options, self.config = folder, context, options, config
         self.reference, self.mask, self.exposure, self.record, self.progress = reference, mask, exposure, record, progress
+        self.floor = floor  # the reference's relMSE floor, or None when unknown (a one-pass reference)
         self.seconds = 0.0
         self.warm = set()
-        self.floor = None
         self.metric_seconds = 0.0
 
     def run(self, method, cells):

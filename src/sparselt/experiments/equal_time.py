@@ -268,7 +268,8 @@ def summarize(rows, fit, *, baseline="pt"):
         for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
             group = sorted((row for row in rows if row["method"] == method and row["spp"] == spp),
                            key=lambda row: row["seed"])
-            record = {"method": method, "spp": spp, "seeds": len(group)}
+            record = dict.fromkeys(SUMMARY_COLUMNS, "")  # every record has every column, in order
+            record.update(method=method, spp=spp, seeds=len(group))
             record["seconds_total"] = group_mean(group, "seconds_total")
             record["seconds_total_min"] = min(row.get("seconds_total_min", row["seconds_total"]) for row in group)
             record["seconds_total_max"] = max(row.get("seconds_total_max", row["seconds_total"]) for row in group)
@@ -329,7 +330,6 @@ def _compare_with_baseline(record, group, fit, is_baseline):
         spread = timing_uncertainty(group, fit)
         record["timing_uncertainty"] = spread
         if math.isfinite(low) and spread > 0:
-            early = [fit.relmse_at(row["seconds_total"] / (1 + spread), row["seed"]) - floor for row in group]
             late = [fit.relmse_at(min(row["seconds_total"] * (1 + spread), fit.reached_seconds), row["seed"]) - floor
                     for row in group]
             early = [fit.relmse_at(max(row["seconds_total"] / (1 + spread), fit.seconds_at(fit.spp_range[0])),
