@@ -15,6 +15,7 @@ import pytest
 from sparselt.cli import main
 from sparselt.experiments.compare import RESULT_COLUMNS, ComparisonConfig, compare
 from sparselt.methods import TIME_PHASES, get_method, method_names
+from sparselt.methods.base import WARM_UP_SEED
 from sparselt.methods.cosamp_reconstruction import image_from_samples, reconstruct_luminance
 from sparselt.methods.pixel_samples import PixelSamples
 
@@ -272,3 +273,41 @@ def test_noise_sigma_is_the_median_standard_error_of_the_pixel_means():
     per_pixel = values.reshape(5, 6, 7, 3).astype(np.float64)
     expected = np.median(np.sqrt(per_pixel.var(axis=2, ddof=1).sum(axis=-1) / 7))
     assert noise_sigma(samples) == pytest.approx(expected, rel=1e-9)
+
+
+def test_timing_repeats_run_in_rounds_and_an_interrupted_run_resumes_between_them(tmp_path, cache, monkeypatch):
+    """Each cell's repeats are spread over the run (PT's rungs between them), each repeat is kept as it
+    finishes, and a run stopped mid-round resumes without running a finished repeat again."""
+    calls = []
+    stop_at = {"call": 4}
+    for name in ("pt", "samples-mean"):
+        method = get_method(name)
+
+        def logged(context, budget, run=method.run, name=name):
+            calls.append((name, budget.spp, budget.seed))
+            if len(calls) == stop_at["call"]:
+                raise RuntimeError("stopped")
+            return run(context, budget)
+
+        monkeypatch.setattr(method, "run", logged)
+    config = tiny(methods=("pt", "samples-mean"), spps=(4,), seeds=(1,), timing_repeats=3)
+    out = tmp_path / "rounds"
+    with pytest.raises(RuntimeError, match="stopped"):
+        compare(config, out, progress=False, cache_directory=cache)
+    interrupted = list(calls)
+    stop_at["call"] = -1
+    compare(config, out, progress=False, cache_directory=cache)
+    resumed = calls[len(interrupted):]
+    # The interrupted call never finished; every other run happened exactly once over the two commands.
+    warm_up_seed = WARM_UP_SEED  # each command warms each method up once (not a cell's run)
+    finished = [call for call in interrupted[:-1] + resumed if call[2] != warm_up_seed]
+    cells = {call: finished.count(call) for call in finished}
+    assert set(cells.values()) == {3}, cells
+    positions = [index for index, call in enumerate(finished) if call[0] == "samples-mean"]
+    assert positions[-1] - positions[0] > len(positions)  # not back to back: PT's rungs ran between them
+    ladder = [call for call in finished[:positions[1]] if call[0] == "pt"]
+    assert finished[positions[1] - len(ladder):positions[1]] == ladder[::-1]  # round 2 runs round 1 backwards
+    for name in cells:
+        record = json.loads((out / "cells" / f"{name[0]}_spp{name[1]}_seed{name[2]}.json").read_text())
+        assert len(record["repeat_totals"]) == 3 and record["row"]["timing_repeats"] == 3
+        assert record["row"]["seconds_total"] == pytest.approx(float(np.median(record["repeat_totals"])))

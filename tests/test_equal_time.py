@@ -13,6 +13,7 @@ from sparselt.experiments.equal_time import (
     add_equal_time_columns,
     fit_baseline,
     fit_relmse,
+    fit_time,
     mean_interval,
     ratio_interval,
     summarize,
@@ -53,6 +54,31 @@ def test_baseline_fit_gives_pt_at_any_time_within_its_ladder():
     assert fit.seconds_for_relmse(0.5 / 25 + 0.001) == pytest.approx(0.05 + 0.01 * 25, rel=1e-6)
     assert fit.seconds_for_relmse(0.0005) == math.inf  # below PT's floor
     assert fit_baseline(pt_rows(spps=(8,)), "pt") is None
+
+
+def test_time_fit_follows_the_rungs_not_one_slowed_repeat():
+    """One rung slowed fourfold (a busy machine) moves neither the line nor its residual scale much."""
+    spps = np.array([8, 16, 32, 40, 64, 128, 256, 512, 1024], np.float64)
+    times = 0.02 + 0.002 * spps
+    slowed = times.copy()
+    slowed[3] *= 4
+    intercept, slope, residual = fit_time(spps, slowed)
+    assert intercept == pytest.approx(0.02, rel=1e-3) and slope == pytest.approx(0.002, rel=1e-3)
+    assert residual < 1e-3
+    least_squares = np.polyfit(spps, slowed, 1)[1]  # what the least-squares line does with the same rung
+    assert abs(least_squares - 0.02) > 0.01
+
+
+def test_a_time_between_the_lowest_rungs_measured_and_fitted_times_reads_that_rung():
+    """The ladder covers from its fastest rung's measured time, PT's spp clamped to the rung: never below it."""
+    rows = pt_rows(spps=(8, 16, 32, 64, 128, 256, 512))
+    for row in rows:
+        if row["spp"] == 8:
+            row["seconds_total"] = 0.1  # measured faster than the line's 0.13
+    fit = fit_baseline(rows, "pt")
+    assert fit.lowest_seconds == pytest.approx(0.1)
+    assert fit.spp_at(0.11) == 8 and fit.relmse_at(0.11, 1) == pytest.approx(0.5 / 8 + 0.001, rel=1e-6)
+    assert math.isnan(fit.relmse_at(0.05, 1))  # faster than any PT image of the ladder
 
 
 def test_mean_interval_is_the_student_t_interval():

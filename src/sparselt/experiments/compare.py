@@ -17,6 +17,8 @@ Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
     results.csv             one row per (method, spp, seed): RESULT_COLUMNS first
     cells/                  one JSON record per finished (method, spp, seed), with the
                             method's resolved options: what a rerun resumes from
+    repeats/                each cell's timing repeats so far (the rounds of _CellRunner):
+                            a run interrupted between rounds resumes from them
     images/                 EXR + PNG + npy per method, spp and seed, and the reference
     quality_vs_time.png     SSIM and relMSE against seconds (Figures 8.1/8.3)
     image_grid.png          every method at matched time (Figures 8.2/8.4, 8.7/8.9)
@@ -458,11 +460,9 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
 
         runner = _CellRunner(folder, context, options, config, reference, mask, exposure, record, progress,
                              floor=record["reference_relmse_floor"])
-        for method in sorted(methods, key=lambda method: method.baseline):  # PT last: its ladder follows the others
-            if method.name in config.methods:
-                runner.run(method, [(spp, seed) for seed in config.seeds for spp in config.spps])
-        if any(method.name != baseline for method in methods):
-            record["pt_ladder"] = runner.ladder(get_method(baseline))
+        ladder = runner.run_all(methods, get_method(baseline))
+        if ladder is not None:
+            record["pt_ladder"] = ladder
         method_seconds = runner.seconds
 
         rows = _load_rows(folder, [baseline] + record["config"]["methods"])
@@ -494,14 +494,25 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
 
 
 class _CellRunner:
-    """Runs a comparison's cells: each (method, spp, seed) ``timing_repeats`` times, and PT's ladder.
+    """Runs a comparison's cells: each (method, spp, seed) ``timing_repeats`` times, in rounds, and PT's ladder.
 
     A repeat re-runs the whole method with the same budget (a method gives
-    the same image for the same seed, which is checked): the time of a cell
-    is the median of its repeats' totals, its phases those of the median
-    run, and min and max are recorded. Re-timing the same computation would
-    leave out exactly what varies between runs (the renderer's launches,
-    allocation, caches), so the whole run is repeated.
+    the same image for the same seed, which is checked): re-timing the same
+    computation would leave out exactly what varies between runs (the
+    renderer's launches, allocation, caches). The time of a cell is the
+    median of its repeats' totals, its phases those of the median run, and
+    min and max are recorded.
+
+    The repeats run in **rounds**, not back to back: round 1 runs every
+    method's cells once and then PT's ladder (whose extent follows the
+    methods' round-1 times); rounds 2, 3, ... run every cell again, PT's
+    rungs included, in reverse order on even rounds. A shared machine's speed
+    drifts over minutes (two demo runs measured the methods 16-45% slower
+    and PT 10-18% slower in the second: PT, timed last, saw another
+    machine); in rounds every cell samples the whole run's conditions, and
+    the alternating order cancels a linear drift. Each repeat is recorded
+    as it finishes (``repeats/NAME.json``), so an interrupted run resumes
+    within a round; a cell enters ``cells/`` only with all its repeats.
     """
 
     def __init__(self, folder, context, options, config, reference, mask, exposure, record, progress, *, floor):
@@ -511,81 +522,58 @@ class _CellRunner:
         self.seconds = 0.0
         self.warm = set()
         self.metric_seconds = 0.0
+        self.contexts = {}
 
-    def run(self, method, cells):
-        """Run the cells of ``method`` not yet in the folder; return the rows of all of ``cells``."""
-        method_context = self.context.with_options(self.options[method.name])
-        for spp, seed in cells:
-            name = cell_name(method.name, spp, seed)
-            if self.folder.cell(name) is not None:
-                continue
-            if method.name not in self.warm:
-                warm_start = time.perf_counter()
-                method.warm_up(method_context)
-                self.record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
-                self.seconds += self.record["warm_up_seconds"][method.name]
-                self.warm.add(method.name)
-            self._cell(method, method_context, spp, seed, name)
-        return [self.folder.cell(cell_name(method.name, spp, seed))["row"] for spp, seed in cells]
-
-    def _cell(self, method, method_context, spp, seed, name):
-        budget = Budget(spp=spp, seed=seed)
-        runs = []
-        largest_difference = 0.0
-        for _ in range(self.config.timing_repeats):
-            run_start = time.perf_counter()
-            result = method.run(method_context, budget)
-            wall = time.perf_counter() - run_start
-            self.seconds += wall
-            seconds = check_result(method, result, method_context, budget, wall_seconds=wall)
-            if runs:
-                first = runs[0][0].image
-                scale = float(np.abs(first).max()) or 1.0
-                difference = float(np.abs(result.image.astype(np.float64) - first).max()) / scale
-                # Atomic accumulation (the global guided mode splats samples into pixels from many threads) sums
-                # in another order each run: equal to float32 rounding, not bitwise. Anything larger is a breach.
-                if difference > 1e-4:
-                    raise ValueError(f"method {method.name!r} gave another image when run again with the same seed "
-                                     f"({seed}) at spp {spp} (largest difference {difference:.2g} of the image's "
-                                     "maximum): a method must be a function of its budget")
-                largest_difference = max(largest_difference, difference)
-            runs.append((result, seconds, wall))
-        totals = [sum(seconds.values()) for _, seconds, _ in runs]
-        median = sorted(range(len(runs)), key=totals.__getitem__)[len(runs) // 2]
-        result, seconds = runs[0][0], runs[median][1]
-        metrics_start = time.perf_counter()
-        row = _row(method.name, spp, seed, result, seconds, self.reference, self.mask)
-        self.metric_seconds += time.perf_counter() - metrics_start  # harness time, never a method's
-        if self.floor is not None:
-            row.update(reference_relmse_floor=self.floor, relmse_debiased=row["relmse"] - self.floor,
-                       reference_limited=bool(row["relmse"] < 2 * self.floor))
-        row.update(seconds_total=float(np.median(totals)), seconds_total_min=min(totals),
-                   seconds_total_max=max(totals), timing_repeats=len(runs),
-                   timing_noisy=bool(max(totals) > NOISY_TIMING_RATIO * min(totals)))
-        self.folder.write_image(f"{IMAGES}/{name}", result.image, exposure=self.exposure)
-        self.folder.record_cell(name, {"row": row, "details": result.details, "seconds": seconds,
-                                       "repeat_totals": totals, "repeat_image_difference": largest_difference,
-                                       "options": self.options[method.name].record(),
-                                       "wall_seconds": [wall for _, _, wall in runs]})
-        if self.progress:
-            print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s "
-                  f"(median of {len(runs)}), SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.4g}, "
-                  f"luminance x{row['luminance_ratio']:.3f}", file=sys.stderr)
-
-    def ladder(self, baseline):
-        """PT at spp = s0, 2 s0, 4 s0, ... (s0 below the smallest budget) for every seed, until its median time
-        passes every other method's median time or the cap :attr:`ComparisonConfig.pt_ladder_max_spp`; then
-        s0 / 2, s0 / 4, ... down to 1 spp while PT's smallest rung is slower than the fastest method."""
+    # ----------------------------------------------------------------- the plan
+    def run_all(self, methods, baseline):
+        """Every cell of ``methods`` (the baseline's at the run's budgets and on its ladder); return the ladder's
+        record (or None when there is no other method)."""
         config = self.config
-        others = [record["row"] for name, record in self.folder.cells().items()
-                  if record["row"]["method"] != baseline.name and record["row"]["method"] in config.methods]
-        target = max((row["seconds_total"] for row in others), default=0.0)
-        spp = max(1, min(config.spps) // 2)
-        steps, reached, capped = [], 0.0, False
+        by_name = {method.name: method for method in methods}
+        budgets = [(spp, seed) for seed in config.seeds for spp in config.spps]
+        plan = [(method, spp, seed) for method in methods if method.name != baseline.name
+                and method.name in config.methods for spp, seed in budgets]
+        if baseline.name in config.methods:
+            plan += [(baseline, spp, seed) for spp, seed in budgets]
+        for method, spp, seed in plan:  # round 1
+            self._repeat(method, spp, seed, 1)
+        ladder = None
+        if any(name != baseline.name for name in by_name):
+            ladder = self._ladder(baseline, lambda spp: [self._repeat(baseline, spp, seed, 1) for seed in config.seeds],
+                                  self._other_times(baseline, plan))
+            plan += [(baseline, spp, seed) for spp in ladder["spps"] for seed in config.seeds
+                     if spp not in config.spps or baseline.name not in config.methods]
+        for round_number in range(2, config.timing_repeats + 1):
+            if self.progress:
+                print(f"compare: timing round {round_number} of {config.timing_repeats} ({len(plan)} cells)",
+                      file=sys.stderr)
+            for method, spp, seed in (reversed(plan) if round_number % 2 == 0 else plan):
+                self._repeat(method, spp, seed, round_number)
+        for method, spp, seed in plan:
+            self._finish(method, spp, seed)
+        if ladder is not None:
+            # The medians may have moved from round 1's times: extend the ladder (each new rung with all its
+            # repeats) until it covers them again.
+            ladder = self._ladder(baseline, lambda spp: [self._finished(baseline, spp, seed) for seed in config.seeds],
+                                  self._other_times(baseline, plan), start=ladder["spps"])
+        return ladder
+
+    def _ladder(self, baseline, run_rung, others, start=None):
+        """PT at spp = s0, 2 s0, 4 s0, ... (s0 below the smallest budget) for every seed, until its time passes
+        every other method's time or the cap :attr:`ComparisonConfig.pt_ladder_max_spp`; then s0 / 2, s0 / 4,
+        ... down to 1 spp while PT's smallest rung is slower than the fastest method. ``run_rung(spp)`` runs a
+        rung and returns its times (one per seed); ``others`` are the other methods' times; ``start`` is a
+        ladder already run."""
+        config = self.config
+        target = max(others, default=0.0)
+        fastest = min(others, default=math.inf)
+        steps = list(start or [])
+        spp = steps[-1] if steps else max(1, min(config.spps) // 2)
+        capped = False
         while True:
-            rows = self.run(baseline, [(spp, seed) for seed in config.seeds])
-            reached = float(np.median([row["seconds_total"] for row in rows]))
-            steps.append(spp)
+            reached = float(np.median(run_rung(spp)))
+            if spp not in steps:
+                steps.append(spp)
             if reached > target and len(steps) >= 2:
                 break
             if 2 * spp > config.pt_ladder_max_spp:
@@ -593,17 +581,120 @@ class _CellRunner:
                 break
             spp *= 2
         # Downwards too, while a method is faster than PT's smallest rung: nothing is extrapolated at either end.
-        fastest = min((row["seconds_total"] for row in others), default=math.inf)
+        steps.sort()
         spp = steps[0]
-        while spp > 1:
-            rows = [self.folder.cell(cell_name(baseline.name, spp, seed))["row"] for seed in config.seeds]
-            if float(np.median([row["seconds_total"] for row in rows])) <= fastest:
-                break
+        while spp > 1 and float(np.median(run_rung(spp))) > fastest:
             spp //= 2
-            self.run(baseline, [(spp, seed) for seed in config.seeds])
             steps.insert(0, spp)
         return {"spps": steps, "target_seconds": target, "reached_seconds": reached, "capped": capped,
                 "max_spp": config.pt_ladder_max_spp, "fastest_seconds": fastest}
+
+    def _other_times(self, baseline, plan):
+        """The times of every other method's cell: this run's plan and those an earlier run of the folder
+        finished (its union of budgets), which the ladder must cover too."""
+        times = {cell_name(method.name, spp, seed): self._time(method.name, spp, seed)
+                 for method, spp, seed in plan if method.name != baseline.name}
+        for name, done in self.folder.cells().items():
+            if done["row"]["method"] != baseline.name and done["row"]["method"] in self.record["config"]["methods"]:
+                times.setdefault(name, done["row"]["seconds_total"])
+        return list(times.values())
+
+    # ----------------------------------------------------------------- one cell
+    def _context(self, method):
+        if method.name not in self.contexts:
+            self.contexts[method.name] = self.context.with_options(self.options[method.name])
+        return self.contexts[method.name]
+
+    def _repeats(self, name):
+        path = f"repeats/{name}.json"
+        return self.folder.read_json(path) if self.folder.exists(path) else None
+
+    def _time(self, method_name, spp, seed):
+        """The cell's time so far: the median of its repeats (the finished cell's time when it is done)."""
+        name = cell_name(method_name, spp, seed)
+        done = self.folder.cell(name)
+        if done is not None:
+            return done["row"]["seconds_total"]
+        return float(np.median(self._repeats(name)["totals"]))
+
+    def _repeat(self, method, spp, seed, round_number):
+        """Run repeat ``round_number`` of a cell unless it is done; return the cell's time so far."""
+        name = cell_name(method.name, spp, seed)
+        if self.folder.cell(name) is not None:
+            return self.folder.cell(name)["row"]["seconds_total"]
+        partial = self._repeats(name)
+        if partial is not None and len(partial["totals"]) >= round_number:
+            return float(np.median(partial["totals"]))
+        context = self._context(method)
+        if method.name not in self.warm:
+            warm_start = time.perf_counter()
+            method.warm_up(context)
+            self.record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
+            self.seconds += self.record["warm_up_seconds"][method.name]
+            self.warm.add(method.name)
+        budget = Budget(spp=spp, seed=seed)
+        run_start = time.perf_counter()
+        result = method.run(context, budget)
+        wall = time.perf_counter() - run_start
+        self.seconds += wall
+        seconds = check_result(method, result, context, budget, wall_seconds=wall)
+        if partial is None:
+            metrics_start = time.perf_counter()
+            row = _row(method.name, spp, seed, result, seconds, self.reference, self.mask)
+            self.metric_seconds += time.perf_counter() - metrics_start  # harness time, never a method's
+            self.folder.write_image(f"{IMAGES}/{name}", result.image, exposure=self.exposure)
+            partial = {"row": row, "details": result.details, "phases": [], "totals": [], "wall_seconds": [],
+                       "repeat_image_difference": 0.0}
+            if self.progress:
+                print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s "
+                      f"(repeat 1 of {self.config.timing_repeats}), SSIM {row['ssim']:.3f}, relMSE "
+                      f"{row['relmse']:.4g}, luminance x{row['luminance_ratio']:.3f}", file=sys.stderr)
+        else:
+            first = np.load(self.folder.path_of(f"{IMAGES}/{name}.npy"))
+            scale = float(np.abs(first).max()) or 1.0
+            difference = float(np.abs(result.image.astype(np.float64) - first).max()) / scale
+            # Atomic accumulation (the global guided mode splats samples into pixels from many threads) sums in
+            # another order each run: equal to float32 rounding, not bitwise. Anything larger is a breach.
+            if difference > 1e-4:
+                raise ValueError(f"method {method.name!r} gave another image when run again with the same seed "
+                                 f"({seed}) at spp {spp} (largest difference {difference:.2g} of the image's "
+                                 "maximum): a method must be a function of its budget")
+            partial["repeat_image_difference"] = max(partial["repeat_image_difference"], difference)
+        partial["phases"].append(seconds)
+        partial["totals"].append(sum(seconds.values()))
+        partial["wall_seconds"].append(wall)
+        self.folder.write_json(f"repeats/{name}.json", partial)
+        return float(np.median(partial["totals"]))
+
+    def _finished(self, method, spp, seed):
+        """Run a cell's remaining repeats back to back (a rung added after the rounds), finish it; its time."""
+        for round_number in range(1, self.config.timing_repeats + 1):
+            self._repeat(method, spp, seed, round_number)
+        return self._finish(method, spp, seed)
+
+    def _finish(self, method, spp, seed):
+        """Record a cell whose repeats are all in: median time, min, max, the median run's phases."""
+        name = cell_name(method.name, spp, seed)
+        done = self.folder.cell(name)
+        if done is not None:
+            return done["row"]["seconds_total"]
+        partial = self._repeats(name)
+        totals = partial["totals"]
+        median = sorted(range(len(totals)), key=totals.__getitem__)[len(totals) // 2]
+        seconds = partial["phases"][median]
+        row = dict(partial["row"], **{f"seconds_{phase}": seconds[phase] for phase in TIME_PHASES})
+        if self.floor is not None:
+            row.update(reference_relmse_floor=self.floor, relmse_debiased=row["relmse"] - self.floor,
+                       reference_limited=bool(row["relmse"] < 2 * self.floor))
+        row.update(seconds_total=float(np.median(totals)), seconds_total_min=min(totals),
+                   seconds_total_max=max(totals), timing_repeats=len(totals),
+                   timing_noisy=bool(max(totals) > NOISY_TIMING_RATIO * min(totals)))
+        self.folder.record_cell(name, {"row": row, "details": partial["details"], "seconds": seconds,
+                                       "repeat_totals": totals,
+                                       "repeat_image_difference": partial["repeat_image_difference"],
+                                       "options": self.options[method.name].record(),
+                                       "wall_seconds": partial["wall_seconds"]})
+        return row["seconds_total"]
 
 
 def method_record(method, options):
