@@ -529,7 +529,6 @@ class _CellRunner:
         """Every cell of ``methods`` (the baseline's at the run's budgets and on its ladder); return the ladder's
         record (or None when there is no other method)."""
         config = self.config
-        by_name = {method.name: method for method in methods}
         budgets = [(spp, seed) for seed in config.seeds for spp in config.spps]
         plan = [(method, spp, seed) for method in methods if method.name != baseline.name
                 and method.name in config.methods for spp, seed in budgets]
@@ -538,7 +537,7 @@ class _CellRunner:
         for method, spp, seed in plan:  # round 1
             self._repeat(method, spp, seed, 1)
         ladder = None
-        if any(name != baseline.name for name in by_name):
+        if any(method.name != baseline.name for method in methods):
             ladder = self._ladder(baseline, lambda spp: [self._repeat(baseline, spp, seed, 1) for seed in config.seeds],
                                   self._other_times(baseline, plan))
             plan += [(baseline, spp, seed) for spp in ladder["spps"] for seed in config.seeds
@@ -620,11 +619,10 @@ class _CellRunner:
     def _repeat(self, method, spp, seed, round_number):
         """Run repeat ``round_number`` of a cell unless it is done; return the cell's time so far."""
         name = cell_name(method.name, spp, seed)
-        if self.folder.cell(name) is not None:
-            return self.folder.cell(name)["row"]["seconds_total"]
-        partial = self._repeats(name)
-        if partial is not None and len(partial["totals"]) >= round_number:
-            return float(np.median(partial["totals"]))
+        done = self.folder.cell(name) is not None
+        partial = None if done else self._repeats(name)
+        if done or (partial is not None and len(partial["totals"]) >= round_number):
+            return self._time(method.name, spp, seed)
         context = self._context(method)
         if method.name not in self.warm:
             warm_start = time.perf_counter()

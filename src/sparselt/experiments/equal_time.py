@@ -136,8 +136,8 @@ class BaselineFit:
     ssim: dict
     spp_range: tuple
     reached_seconds: float
+    lowest_seconds: float
     flip: dict = field(default_factory=dict)
-    lowest_seconds: float = None
 
     def spp_at(self, seconds):
         """PT's spp at ``seconds`` from the time fit, clamped to the ladder's range."""
@@ -148,9 +148,8 @@ class BaselineFit:
         return self.intercept + self.slope * spp
 
     def covers(self, seconds):
-        """Whether ``seconds`` lies within the ladder's fitted times (no extrapolation at either end)."""
-        lowest = self.seconds_at(self.spp_range[0]) if self.lowest_seconds is None else self.lowest_seconds
-        return lowest * (1 - 1e-9) <= seconds <= self.reached_seconds * (1 + 1e-9)
+        """Whether ``seconds`` lies within the ladder's times (no extrapolation at either end)."""
+        return self.lowest_seconds * (1 - 1e-9) <= seconds <= self.reached_seconds * (1 + 1e-9)
 
     def relmse_at(self, seconds, seed):
         """PT's relMSE at ``seconds`` for ``seed`` (its own seed's fit); ``nan`` beyond the ladder."""
