@@ -178,6 +178,30 @@ def test_the_reference_variance_from_its_passes_matches_independent_references(t
     assert np.isnan(reference_relmse_floor(images[0], single["variance"], epsilon=0.01))  # one pass: unknown
 
 
+def test_no_path_traced_cell_replays_a_pass_of_the_reference(tmp_path):
+    """A reference of seed 0 in two 64 spp passes, and PT at 64 spp with seeds 0 and 1 (what the comparison gives
+    its cells): before the reference's seeds were moved out of the methods' range these two images were its
+    passes, bit for bit, so their mean equalled the reference. Now every pixel's difference is noise of the size
+    the passes' own variance predicts: over the lit pixels, the mean squared difference of the two independent
+    128 spp estimates over twice the reference's mean estimated variance is about 1 (not 0; measured 0.91)."""
+    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.baseline import (
+        METHOD_SEED_LIMIT, REFERENCE_PASS_SPP, REFERENCE_SEED_BASE, cached_reference, reference_pass_seed)
+    from sparselt.rendering.scenes import get_scene
+
+    assert REFERENCE_SEED_BASE >= 2**31 > (METHOD_SEED_LIMIT - 1) ^ 0x5A5A5A5A
+    assert reference_pass_seed(0, 0) == REFERENCE_SEED_BASE and reference_pass_seed(2**14 - 1, 2**16 - 1) == 2**32 - 1
+    scene = mitsuba_backend.MitsubaScene(get_scene("cornell-box"), (16, 16))
+    reference, record = cached_reference(scene, "path", spp=2 * REFERENCE_PASS_SPP, seed=0, progress=False,
+                                         cache_directory=str(tmp_path))
+    cells = [scene.render_path(REFERENCE_PASS_SPP, 3, seed)[0].astype(np.float64) for seed in (0, 1)]
+    difference = np.mean(cells, axis=0) - reference
+    lit = record["variance"] > 0
+    assert not np.allclose(difference, 0.0, atol=1e-6)
+    standardised = np.mean(difference[lit] ** 2) / np.mean(2 * record["variance"][lit])
+    assert 0.5 < standardised < 2.0
+
+
 def test_timing_uncertainty_widens_the_ratio_interval():
     """PT is read at the method's time divided and multiplied by 1 + d: a spread of repeats widens the interval."""
     at = 0.05 + 0.01 * 40

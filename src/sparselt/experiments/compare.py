@@ -59,7 +59,7 @@ from ..methods import TIME_PHASES, Budget, ComparisonContext, baseline_name, get
 from ..methods.contract import check_result
 from ..provenance import environment_record
 from ..rendering import mitsuba_backend
-from ..rendering.baseline import check_wavefront, reference_relmse_floor
+from ..rendering.baseline import METHOD_SEED_LIMIT, REFERENCE_SEED_LIMIT, check_wavefront, reference_relmse_floor
 from ..rendering.identity import scene_identity
 from ..rendering.layout import path_layout
 from ..rendering.scenes import SceneSpec, get_scene
@@ -258,10 +258,10 @@ def validate_config(config):
     if not config.seeds:
         raise ValueError("give at least one seed")
     for seed in config.seeds:
-        check_integer("seed", seed, 0, 2**32 - 2)
+        check_integer("seed", seed, 0, METHOD_SEED_LIMIT - 1)  # above it: the reference's passes
     check_integer("timing repeats", config.timing_repeats, 1, 100)
     check_integer("PT ladder max spp", config.pt_ladder_max_spp, 2, 2**16 - 1)
-    check_integer("reference seed", config.reference_seed, 0, 2**16 - 1)
+    check_integer("reference seed", config.reference_seed, 0, REFERENCE_SEED_LIMIT - 1)
     check_integer("max_depth", config.max_depth, 1)
     if len(config.shape) < 2:
         raise ValueError(f"shape {tuple(config.shape)} needs at least the two image axes")

@@ -41,6 +41,7 @@ from ..methods.sft_reconstruction import SftOptions, reconstruct
 from ..provenance import environment_record
 from ..recovery.path_space import largest_energy_fraction
 from ..rendering import mitsuba_backend
+from ..rendering.baseline import METHOD_SEED_LIMIT, cached_reference
 from ..rendering.layout import path_layout
 from ..rendering.identity import scene_identity
 from ..rendering.scenes import get_scene
@@ -114,7 +115,7 @@ def validate(config):
     sparsity = max(1, round(size * 1e-4)) if config.sparsity is None else config.sparsity  # 0 is refused, not the default
     check_integer("sparsity (K)", sparsity, 1, size // 2)
     check_reference_spp(tuple(config.shape[:2]), config.reference_spp)
-    check_integer("seed", config.seed, 0, 2**32 - 2)
+    check_integer("seed", config.seed, 0, METHOD_SEED_LIMIT - 1)  # above it: the reference's passes
     if config.compressibility_shape is not None:
         if len(config.compressibility_shape) != len(config.shape):
             raise ValueError(f"compressibility shape {config.compressibility_shape} needs {len(config.shape)} axes")
@@ -156,7 +157,6 @@ def run_table61(config, out, *, progress=True):
 
 
 def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
-    from ..rendering.baseline import cached_reference
 
     resolution = tuple(config.shape[:2])
     given = {"sparsity": sparsity, "snr": config.snr}
