@@ -157,7 +157,6 @@ def run_table61(config, out, *, progress=True):
 
 
 def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
-
     resolution = tuple(config.shape[:2])
     given = {"sparsity": sparsity, "snr": config.snr}
     folder.write_json("table61.json", {"config": config.record(), "sparsity": sparsity,

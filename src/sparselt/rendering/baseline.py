@@ -132,13 +132,13 @@ REFERENCE_MAX_PASSES = 2**16
 def reference_pass_seed(seed, index):
     """Mitsuba's seed for pass ``index`` of a reference of ``seed``; disjoint from every method seed.
 
-    ``REFERENCE_SEED_BASE + seed * 65536 + index``, for ``seed`` below :data:`REFERENCE_SEED_LIMIT` and ``index``
+    ``REFERENCE_SEED_BASE + seed * REFERENCE_MAX_PASSES + index``, for ``seed`` below :data:`REFERENCE_SEED_LIMIT` and ``index``
     below :data:`REFERENCE_MAX_PASSES`: always in ``[REFERENCE_SEED_BASE, 2**32)``, above any seed a comparison
     gives a method (``< METHOD_SEED_LIMIT``, with the guided methods' ``seed ^ 0x5A5A5A5A`` below ``2**31``).
     """
     check_integer("reference seed", seed, 0, REFERENCE_SEED_LIMIT - 1)
     check_integer("reference pass", index, 0, REFERENCE_MAX_PASSES - 1)
-    return REFERENCE_SEED_BASE + seed * 65536 + index
+    return REFERENCE_SEED_BASE + seed * REFERENCE_MAX_PASSES + index
 
 
 def reference_cache_directory():
@@ -205,9 +205,8 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     """
     from . import mitsuba_backend
 
-    check_integer("reference spp", spp, 1)
-    check_integer("reference seed", seed, 0, REFERENCE_SEED_LIMIT - 1)
     check_integer("reference spp", spp, 1, REFERENCE_PASS_SPP * REFERENCE_MAX_PASSES)
+    check_integer("reference seed", seed, 0, REFERENCE_SEED_LIMIT - 1)
     depth, subtracted = reference_quantity(kind, max_depth)
     key = {
         "scene": {"name": loaded.spec.name, "identity": scene_identity(loaded.spec)["digest"],
