@@ -112,3 +112,24 @@ def test_analyze_a_sampled_signal(tmp_path):
     assert (tmp_path / "analysis" / "ssim_vs_fraction.png").exists()
     bad = run("analyze", str(signal), "--gamma", "0", "--out", str(tmp_path / "bad"))
     assert bad.returncode != 0 and "gamma" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_a_ctrl_c_wrapped_by_a_drjit_custom_operation_is_an_interruption_not_an_error(monkeypatch, capsys):
+    """mi.render runs its Python part inside drjit.custom, which turns a KeyboardInterrupt into a RuntimeError
+    (the cause of an intermittent exit 2 instead of 130 on Ctrl-C during a compare's reference render)."""
+    import drjit as dr
+
+    from sparselt import signal as signal_module
+    from sparselt.rendering import mitsuba_backend  # noqa: F401  (sets the Mitsuba variant)
+
+    class Interrupted(dr.CustomOp):
+        def eval(self, value):
+            raise KeyboardInterrupt
+
+    def load_signal(path):
+        return dr.custom(Interrupted, dr.llvm.ad.Float(1.0))
+
+    monkeypatch.setattr(signal_module, "load_signal", load_signal)
+    assert main(["show", "anything", "--out", "pictures"]) == 130
+    error = capsys.readouterr().err
+    assert "interrupted" in error and "error:" not in error

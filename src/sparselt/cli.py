@@ -509,6 +509,17 @@ def _describe(error):
     return str(error)
 
 
+def _caused_by_interrupt(error):
+    """Whether a KeyboardInterrupt lies in the chain of causes of ``error`` (drjit.custom wraps one in a RuntimeError)."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False
+
+
 def _plugins_named(argv):
     """The ``--plugin MODULE`` values of a command line, read before the parser is built (its help lists them)."""
     modules = []
@@ -541,6 +552,10 @@ def main(argv=None):
         except (ValueError, TypeError, RuntimeError, OSError) as error:
             # Ctrl-C during a Mitsuba render cancels the render (a RuntimeError) and then re-raises the signal:
             # Python's pending KeyboardInterrupt fires here, on the first bytecode, before the error is reported.
+            # A Ctrl-C that lands in mi.render's Python part instead is wrapped by drjit.custom into a RuntimeError
+            # whose cause is the KeyboardInterrupt: that is an interruption too, not an error.
+            if _caused_by_interrupt(error):
+                raise KeyboardInterrupt from error
             message = _describe(error)
             print(f"sparselt {arguments.command}: error: {message}", file=sys.stderr)
             return 2
