@@ -26,8 +26,9 @@ Examples
 >>> claim = table_claims("7.3")[0]
 >>> claim["type"], claim["direction"]
 ('trend', 'falls')
->>> thesis_quantity(claim["quantity"])
-[0.689, 0.3889, 0.2018, 0.0821, 0.0413]
+>>> values = thesis_quantity(claim["quantity"])  # Table 7.3's "Time" column, gamma 1 to 0.05
+>>> len(values), values[-1] < values[0]
+(5, True)
 >>> judge(claim, [0.83, 0.64]).agrees
 True
 """

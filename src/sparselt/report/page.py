@@ -1,27 +1,36 @@
 """One static, self-contained HTML page: per chapter, the thesis's tables beside ours, figures, verdicts.
 
 No external resources and no server: styles are inline, images are files next
-to the page referenced by relative paths. A small inline script marks, on
-``load``, how many images the page has and which failed to load
-(``body[data-images]``, ``body[data-broken-images]``), so a headless browser's
-DOM dump tells whether the page renders.
+to the page referenced by relative paths. A table of contents at the top links
+every section (an ``<h2>`` with an ``id``) and, under it, every table's and
+figure's caption (each an anchor of its own). Figures span the content column;
+each image is a link to its file, so a click opens it at full size. A small
+inline script marks, on ``load``, how many images the page has and which
+failed to load (``body[data-images]``, ``body[data-broken-images]``), so a
+headless browser's DOM dump tells whether the page renders.
 """
 
 from __future__ import annotations
 
 import html
 import os
+import re
 from dataclasses import dataclass, field
 
 from ..provenance import atomic_write_bytes
 from .table import TABLE_STYLE, Table
 
 STYLE = """
-body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; margin: 2em auto; max-width: 72em;
-       color: #222; line-height: 1.45; }
+body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; margin: 2em auto; max-width: 90em;
+       padding: 0 1.5em; color: #222; line-height: 1.45; }
 h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; margin-top: 2em; }
-figure { display: inline-block; margin: 1em 1em 1em 0; max-width: 45%; vertical-align: top; }
-figure img { max-width: 100%; border: 1px solid #ddd; } figcaption { font-size: .88em; color: #444; }
+p { max-width: 68em; }
+figure { display: block; margin: 1.5em 0; width: 100%; }
+figure a { display: block; } figure img { display: block; width: 100%; height: auto; border: 1px solid #ddd; }
+figcaption { font-size: .88em; color: #444; margin-top: .3em; }
+nav.contents { background: #fafafa; border: 1px solid #ddd; padding: .5em 1.2em; margin: 1em 0 2em 0; font-size: .92em; }
+nav.contents p { margin: .3em 0; font-weight: bold; } nav.contents ul { margin: .2em 0; padding-left: 1.4em; }
+nav.contents ul ul { font-size: .92em; color: #444; }
 .verdict { background: #f0f4fa; border-left: 4px solid #4a6fa5; padding: .6em 1em; margin: 1em 0; }
 .provenance { font-size: .85em; color: #555; } code { font-size: .95em; }
 """ + TABLE_STYLE
@@ -71,6 +80,41 @@ def _escape(text):
     return html.escape(str(text), quote=True)
 
 
+def anchor_identifier(text, used):
+    """An HTML ``id`` made from ``text`` (lower case, runs of other characters as ``-``), unique among ``used``.
+
+    Parameters
+    ----------
+    text : str
+        A section title or caption.
+    used : set of str
+        The identifiers given so far on the page; the new one is added.
+
+    Returns
+    -------
+    str
+        For example ``"chapter-4-fourier-integration"``; ``"-2"``, ``"-3"``,
+        ... appended when taken.
+    """
+    base = re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-")[:60].strip("-") or "part"
+    identifier, number = base, 1
+    while identifier in used:
+        number += 1
+        identifier = f"{base}-{number}"
+    used.add(identifier)
+    return identifier
+
+
+def _contents(entries):
+    """The table of contents: per section a link, and under it its tables' and figures' captions."""
+    items = []
+    for identifier, title, parts in entries:
+        nested = "".join(f"<li><a href=\"#{_escape(part)}\">{_escape(caption)}</a></li>" for part, caption in parts)
+        items.append(f"<li><a href=\"#{_escape(identifier)}\">{_escape(title)}</a>"
+                     + (f"<ul>{nested}</ul>" if nested else "") + "</li>")
+    return "<nav class=\"contents\"><p>Contents</p><ul>" + "".join(items) + "</ul></nav>"
+
+
 def page_html(folder, title, sections, provenance, *, note=""):
     """The report page as HTML text; every image and link path is relative to ``folder``, where the page goes.
 
@@ -97,17 +141,29 @@ def page_html(folder, title, sections, provenance, *, note=""):
              f"<h1>{_escape(title)}</h1>"]
     if note:
         parts.append(f"<p>{_escape(note)}</p>")
+    used, contents, body = {"contents"}, [], []
     for section in sections:
-        parts.append(f"<h2>{_escape(section.title)}</h2>")
+        identifier = anchor_identifier(section.title, used)
+        entries = []
+        body.append(f"<h2 id=\"{_escape(identifier)}\">{_escape(section.title)}</h2>")
         if section.introduction:
-            parts.append(f"<p>{_escape(section.introduction)}</p>")
+            body.append(f"<p>{_escape(section.introduction)}</p>")
         for verdict in section.verdicts:
-            parts.append(f"<p class=\"verdict\">{_escape(verdict)}</p>")
-        parts.extend(table.html() for table in section.tables)
-        for figure in section.figures:
+            body.append(f"<p class=\"verdict\">{_escape(verdict)}</p>")
+        for number, table in enumerate(section.tables, 1):
+            table_identifier = anchor_identifier(f"{identifier}-table-{number}", used)
+            entries.append((table_identifier, table.caption))
+            body.append(table.html(identifier=table_identifier))
+        for number, figure in enumerate(section.figures, 1):
             _check_relative(folder, figure.path)
-            parts.append(f"<figure><img src=\"{_escape(figure.path)}\" alt=\"{_escape(figure.caption)}\">"
-                         f"<figcaption>{_escape(figure.caption)}</figcaption></figure>")
+            figure_identifier = anchor_identifier(f"{identifier}-figure-{number}", used)
+            entries.append((figure_identifier, figure.caption))
+            path, caption = _escape(figure.path), _escape(figure.caption)
+            body.append(f"<figure id=\"{_escape(figure_identifier)}\"><a href=\"{path}\" title=\"open at full size\">"
+                        f"<img src=\"{path}\" alt=\"{caption}\"></a><figcaption>{caption}</figcaption></figure>")
+        contents.append((identifier, section.title, entries))
+        parts = parts + body
+        body = []
         if section.links:
             items = []
             for text, target in section.links:

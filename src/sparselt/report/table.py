@@ -9,7 +9,10 @@ the ``.md`` a reader opens, the ``.csv`` a script reads and the report page
 always show the same rows and columns.
 
 Cells are text as given: numbers are formatted by the caller (a table of
-measurements decides its own significant digits), and written unchanged.
+measurements decides its own significant digits), and written unchanged,
+except the thesis's: a cell of a ``'thesis'`` column is shown through
+:func:`thesis_display_text` (decimal point for the thesis's decimal comma,
+plain text for its LaTeX), in every rendering.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from __future__ import annotations
 import csv
 import html
 import io
+import re
 from dataclasses import dataclass, field
 
 #: What a column holds: the thesis's printed values, our measurements, or neither (a setting, a label).
@@ -30,6 +34,115 @@ th { background: #f3f3f3; } td.label, th.label { text-align: left; }
 td.thesis, th.thesis { background: #f7f3ea; } td.ours, th.ours { background: #eef5ee; }
 p.table-note { font-size: .88em; color: #444; margin: -.6em 0 1em 0; }
 """
+
+
+#: A number printed with a decimal comma (``"0,6042"``, ``"-12,5"``): one comma, digits on both sides.
+_DECIMAL_COMMA = re.compile(r"[+-]?\d+,\d+")
+#: A number printed with comma thousands separators (``"71,722"``, ``"553,647,600"``): never a decimal comma.
+_THOUSANDS = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+")
+#: LaTeX commands of the thesis's formulas and the plain text each becomes.
+_LATEX_SYMBOLS = {
+    "cdot": "\u00b7", "times": "\u00d7", "approx": "\u2248", "leq": "\u2264", "geq": "\u2265", "le": "\u2264",
+    "ge": "\u2265", "infty": "\u221e", "pm": "\u00b1", "alpha": "\u03b1", "beta": "\u03b2", "gamma": "\u03b3",
+    "delta": "\u03b4", "epsilon": "\u03b5", "lambda": "\u03bb", "mu": "\u03bc", "sigma": "\u03c3",
+    "Omega": "\u03a9", "omega": "\u03c9", "log": "log", "ln": "ln", "exp": "exp", "sqrt": "\u221a",
+    "left": "", "right": "", "mathcal": "", "mathrm": "", "text": "", "operatorname": "",
+}
+#: The commands of :data:`_LATEX_SYMBOLS` that are binary operators (written between spaces).
+_OPERATORS = {"cdot", "times", "approx", "leq", "geq", "le", "ge", "pm"}
+#: Superscript and subscript forms of the characters that have one.
+_SUPERSCRIPTS = str.maketrans("0123456789+-=()n", "\u2070\u00b9\u00b2\u00b3\u2074\u2075\u2076\u2077\u2078\u2079"
+                              "\u207a\u207b\u207c\u207d\u207e\u207f")
+_SUBSCRIPTS = str.maketrans("0123456789+-=()", "\u2080\u2081\u2082\u2083\u2084\u2085\u2086\u2087\u2088\u2089"
+                            "\u208a\u208b\u208c\u208d\u208e")
+
+
+def _script(match, table, marker):
+    """``^{2}`` -> ``²``, ``_1`` -> ``₁``; a script without such characters stays ``^(...)``/``_(...)``."""
+    body = match.group(1) if match.group(1) is not None else match.group(2)
+    converted = body.translate(table)
+    if all(character != original or character.isspace() for character, original in zip(converted, body)):
+        return converted
+    return f"{marker}{body}" if len(body) == 1 else f"{marker}({body})"
+
+
+def _command(match):
+    """A LaTeX command's plain text: an operator (``·``) between spaces, a word (``log``) with one before a symbol."""
+    name, following = match.group(1), match.group(2)
+    plain = _LATEX_SYMBOLS.get(name, name)
+    if name in _OPERATORS:
+        return f" {plain} "
+    return plain + " " if plain.isalpha() and (following.isalnum() or following in "{\\") else plain
+
+
+def _plain_mathematics(text):
+    """LaTeX mathematics (without its dollars) as plain text: commands, scripts, braces, spacing."""
+    text = re.sub(r"\\[,;:! ]", " ", text)  # thin and other spaces
+    text = re.sub(r"\\frac\s*\{([^{}]*)\}\s*\{([^{}]*)\}",
+                  lambda match: "/".join(part if len(part.strip()) == 1 else f"({part.strip()})"
+                                         for part in match.groups()), text)
+    # A function of one symbol loses its parentheses: \log(N) -> log N.
+    text = re.sub(r"\\(log|ln|exp)\s*\(\s*([A-Za-z0-9]+)\s*\)", r"\1 \2", text)
+    text = re.sub(r"\\([A-Za-z]+)\s*(?=(.?))", _command, text)
+    text = re.sub(r"\^\s*(?:\{([^{}]*)\}|(\w))", lambda match: _script(match, _SUPERSCRIPTS, "^"), text)
+    text = re.sub(r"_\s*(?:\{([^{}]*)\}|(\w))", lambda match: _script(match, _SUBSCRIPTS, "_"), text)
+    text = text.replace("{", "").replace("}", "")
+    text = re.sub(r"\s+([)\],])", r"\1", text)  # "log N )" -> "log N)"
+    text = re.sub(r"([(\[])\s+", r"\1", text)
+    return re.sub(r"\s{2,}", " ", text).strip()
+
+
+def thesis_display_text(text):
+    r"""A thesis cell's printed text as the report shows it: decimal point, LaTeX as plain text.
+
+    Parameters
+    ----------
+    text : str
+        The cell as the thesis prints it (``thesis_tables.json``'s ``"text"``,
+        or a caller's text made from it).
+
+    Returns
+    -------
+    str
+        ``text`` with a decimal comma made a decimal point (``"0,6042"`` ->
+        ``"0.6042"``) and LaTeX mathematics made plain text (``"$O(N \log(N))$"``
+        -> ``"O(N log N)"``, ``"$O(K + P)$"`` -> ``"O(K + P)"``, ``"$N^{2}$"``
+        -> ``"N²"``); any other text unchanged.
+
+    Raises
+    ------
+    TypeError
+        ``text`` is not a string.
+
+    Notes
+    -----
+    A number is converted only when the whole text is one number with one
+    comma between digits; a number with comma thousands separators
+    (``"71,722"``, ``"553,647,600"``, as Python's ``f"{n:,}"`` writes them)
+    is left as it is. The thesis's cells hold no such numbers: its decimals
+    all have a leading ``0`` or a fraction of another length than three.
+    Mathematics is converted in every ``$...$`` span, or in the whole text
+    when it has a LaTeX command but no dollars (a caller stripped them):
+    ``\log``, ``\ln``, ``\exp`` of one symbol lose their parentheses
+    (``\log(P)`` -> ``log P``), ``\cdot`` becomes ``·``, ``\frac{a}{b}``
+    ``a/b``, Greek letters
+    their characters, ``^{2}``/``^2`` and ``_{1}`` superscript and
+    subscript characters, and braces are removed.
+
+    References
+    ----------
+    The thesis's tables, as transcribed in ``sparselt/data/thesis_tables.json``.
+    """
+    if not isinstance(text, str):
+        raise TypeError(f"thesis_display_text takes the cell's text (a string), got {type(text).__name__}")
+    stripped = text.strip()
+    if _DECIMAL_COMMA.fullmatch(stripped) and not _THOUSANDS.fullmatch(stripped):
+        return stripped.replace(",", ".")
+    if "$" in text:
+        return re.sub(r"\$([^$]*)\$", lambda match: _plain_mathematics(match.group(1)), text)
+    if re.search(r"\\[A-Za-z]", text):
+        return _plain_mathematics(text)
+    return text
 
 
 def _text(cell):
@@ -54,7 +167,9 @@ class Table:
     kinds : list of str, optional
         Per column, ``'thesis'`` (the thesis's printed value), ``'ours'``
         (what this toolkit measured) or ``''`` (neither); default all ``''``.
-        The HTML shades thesis and our columns differently.
+        The HTML shades thesis and our columns differently; every rendering
+        shows a thesis cell through :func:`thesis_display_text` (decimal
+        point, plain-text mathematics), while :attr:`rows` keeps it as given.
     notes : list of str, optional
         Lines printed under the table (Markdown and HTML; not in the CSV,
         which holds only the header and the rows).
@@ -128,9 +243,23 @@ class Table:
         """The full header: the label column's, then :attr:`columns`."""
         return [self.label_header] + list(self.columns)
 
+    def display_rows(self):
+        """:attr:`rows` as every rendering shows them: thesis cells through :func:`thesis_display_text`.
+
+        Returns
+        -------
+        list of (str, list of str)
+            Per row, its label and its cells; a cell of a ``'thesis'``
+            column with a decimal point and plain-text mathematics, every
+            other cell as given.
+        """
+        thesis = set(self.thesis_columns)
+        return [(label, [thesis_display_text(text) if index in thesis else text for index, text in enumerate(cells)])
+                for label, cells in self.rows]
+
     def grid(self):
-        """Header and rows as lists of text, label first: what every rendering shows."""
-        return [self.header()] + [[label] + list(cells) for label, cells in self.rows]
+        """Header and rows as lists of text, label first: what every rendering shows (:meth:`display_rows`)."""
+        return [self.header()] + [[label] + list(cells) for label, cells in self.display_rows()]
 
     # ------------------------------------------------------------------ renderings
     def markdown(self, *, heading="#"):
@@ -148,7 +277,8 @@ class Table:
         lines = [f"{heading} {self.caption}" if heading else self.caption, ""]
         lines.append("| " + " | ".join(cell(text) for text in self.header()) + " |")
         lines.append("|" + "---|" * (len(self.columns) + 1))
-        lines += ["| " + " | ".join(cell(text) for text in [label] + cells) + " |" for label, cells in self.rows]
+        lines += ["| " + " | ".join(cell(text) for text in [label] + cells) + " |"
+                  for label, cells in self.display_rows()]
         if self.notes:
             lines.append("")
             lines += [cell(note) for note in self.notes]
@@ -161,8 +291,14 @@ class Table:
         writer.writerows(self.grid())
         return buffer.getvalue()
 
-    def html(self):
-        """The table as an HTML fragment: ``<table>`` with its caption, then the notes as ``<p class="table-note">``."""
+    def html(self, *, identifier=""):
+        """The table as an HTML fragment: ``<table>`` with its caption, then the notes as ``<p class="table-note">``.
+
+        Parameters
+        ----------
+        identifier : str, optional
+            The table's ``id`` (an anchor a page's table of contents links to); none when empty.
+        """
         def escape(text):
             return html.escape(text, quote=True).replace("\n", "<br>")
 
@@ -170,9 +306,10 @@ class Table:
             return f" class=\"{self.kinds[index]}\"" if self.kinds[index] else ""
 
         header = "".join(f"<th{kind(index)}>{escape(column)}</th>" for index, column in enumerate(self.columns))
-        lines = [f"<table><caption>{escape(self.caption)}</caption>",
+        anchor = f" id=\"{escape(identifier)}\"" if identifier else ""
+        lines = [f"<table{anchor}><caption>{escape(self.caption)}</caption>",
                  f"<tr><th class=\"label\">{escape(self.label_header)}</th>{header}</tr>"]
-        for label, cells in self.rows:
+        for label, cells in self.display_rows():
             row = "".join(f"<td{kind(index)}>{escape(text)}</td>" for index, text in enumerate(cells))
             lines.append(f"<tr><td class=\"label\">{escape(label)}</td>{row}</tr>")
         lines.append("</table>")
@@ -186,4 +323,4 @@ def markdown_document(*parts):
     return "\n".join(block.rstrip("\n") + "\n" for block in blocks if block)
 
 
-__all__ = ["KINDS", "TABLE_STYLE", "Table", "markdown_document"]
+__all__ = ["KINDS", "TABLE_STYLE", "Table", "markdown_document", "thesis_display_text"]
