@@ -220,3 +220,23 @@ def test_timing_uncertainty_widens_the_ratio_interval():
     assert records["steady"]["verdict"] == "wins"  # 0.9x with a tight interval
     assert records["shaky"]["relmse_ratio_ci_low"] < records["steady"]["relmse_ratio_ci_low"]
     assert records["shaky"]["relmse_ratio_ci_high"] > records["steady"]["relmse_ratio_ci_high"] > 0.9
+
+
+def test_every_rung_of_the_ladder_is_run_down_to_one_spp():
+    """The downward ladder once listed 1 spp without running it (a cell with no repeats: compare failed at the
+    end with timing_repeats=1 when a method was faster than PT at 2 spp). Times: 0.01 s per spp."""
+    from types import SimpleNamespace
+
+    from sparselt.experiments.compare import _CellRunner
+
+    runner = _CellRunner.__new__(_CellRunner)
+    runner.config = SimpleNamespace(spps=(4, 8), pt_ladder_max_spp=64, seeds=(1,))
+    ran = []
+
+    def run_rung(spp):
+        ran.append(spp)
+        return [0.01 * spp]
+
+    ladder = runner._ladder(None, run_rung, [0.005, 0.09])  # a method at 0.005 s: faster than PT at 1 spp
+    assert ladder["spps"][0] == 1 and set(ladder["spps"]) <= set(ran)
+    assert ladder["reached_seconds"] > 0.09 and not ladder["capped"]

@@ -582,9 +582,11 @@ class _CellRunner:
         # Downwards too, while a method is faster than PT's smallest rung: nothing is extrapolated at either end.
         steps.sort()
         spp = steps[0]
-        while spp > 1 and float(np.median(run_rung(spp))) > fastest:
+        lowest = float(np.median(run_rung(spp)))
+        while spp > 1 and lowest > fastest:
             spp //= 2
             steps.insert(0, spp)
+            lowest = float(np.median(run_rung(spp)))  # every rung listed is run (1 spp was once listed unrun)
         return {"spps": steps, "target_seconds": target, "reached_seconds": reached, "capped": capped,
                 "max_spp": config.pt_ladder_max_spp, "fastest_seconds": fastest}
 
