@@ -90,7 +90,7 @@ def test_outputs_and_provenance(finished):
     assert record["provenance"]["versions"]["mitsuba"] and "git" in record["provenance"]
     assert set(record["warm_up_seconds"]) == set(config.methods)
     table = (out / "table_8.md").read_text()
-    assert "| SPP | Total | Sampling | CoSaMP | Integration |" in table
+    assert "| SPP | Total | Sampling | Reconstruction | Integration |" in table
 
 
 def test_samples_mean_is_the_mean_of_the_cosamp_samples(finished):

@@ -117,7 +117,9 @@ def test_table_8_puts_the_thesis_beside_cosamp_at_depth_of_field_only():
     by_row = {(label, cells[0]): cells for label, cells in table.rows}
     assert by_row["cosamp", "40"][-4:] == [f"{value:g}" for value in thesis[40]]
     assert by_row["pt", "40"][-4:] == ["-"] * 4
-    assert "| method | SPP | Total | Sampling | CoSaMP | Integration |" in table.markdown()
+    # Every method's reconstruction phase, not only CoSaMP's (an SFT-guided method's is its map's time).
+    assert "| method | SPP | Total | Sampling | Reconstruction | Integration |" in table.markdown()
+    assert "CoSaMP" not in table.columns[:table.thesis_columns[0]]
     assert not table_8(_rows(), "dof-sculptures", _config(kind="indirect"), methods=_methods()).thesis_columns
     assert not table_8(_rows(), "cornell-box", _config(), methods=_methods()).thesis_columns
 
@@ -179,3 +181,71 @@ def test_reports_choose_rows_by_role_not_by_name():
     renamed = _rows(methods=("pt", "cosamp-lookalike"))
     table = table_8(renamed, "dof-sculptures", _config(), methods=_methods(("pt", "cosamp-lookalike")))
     assert all(cells[-4:] == ["-"] * 4 for _, cells in table.rows)
+
+
+# ------------------------------------------------------------------------------ the figures
+
+
+def _matched(count=9, height=64, width=64):
+    from sparselt.report.comparison_figures import matched_pictures
+
+    names = ("pt", "samples-mean", "cosamp", "cosamp-thesis", "bilateral", "cosamp-bilateral", "oidn",
+             "guided-cosamp", "guided-bilateral")[:count]
+    rows = [{"method": name, "spp": 40, "seed": 1, "seconds_total": 0.06 * 1.9 ** index, "ssim": 0.812,
+             "relmse": 0.0123456, "luminance_ratio": 0.98} for index, name in enumerate(names)]
+    rng = np.random.default_rng(3)
+    images = {row["method"]: rng.random((height, width, 3)) for row in rows}
+    return matched_pictures(rows, rng.random((height, width, 3)), lambda row: images[row["method"]])
+
+
+def _overlaps(first, second):
+    return not (first.x1 <= second.x0 or second.x1 <= first.x0 or first.y1 <= second.y0 or second.y1 <= first.y0)
+
+
+@pytest.mark.parametrize("count, height, width", [(9, 64, 64), (9, 16, 24), (2, 64, 64), (1, 40, 16)],
+                         ids=["ten-panels", "wide-images", "three-panels", "tall-images"])
+def test_grid_titles_overlap_no_image_and_no_other_text(count, height, width):
+    """Multi-line titles of every row stay above their own images (the second row overprinted the first)."""
+    from sparselt.report.comparison_figures import crop_grid_figure, image_grid_figure
+    from sparselt.report.plotting import pyplot
+
+    matched = _matched(count, height, width)
+    for make in (image_grid_figure, crop_grid_figure):
+        figure = make(*matched)
+        renderer = figure.canvas.get_renderer()
+        axes = [axis for axis in figure.axes if axis.get_visible()]
+        texts = ([axis.title for axis in axes if axis.get_title()] + [axis.yaxis.label for axis in axes
+                                                                       if axis.get_ylabel()] + list(figure.texts))
+        assert len(texts) > len(matched[0])  # a title per panel and the heading
+        for text in texts:
+            box = text.get_window_extent(renderer)
+            for axis in axes:
+                assert not _overlaps(box, axis.get_window_extent(renderer)), (make.__name__, text.get_text())
+            for other in texts:
+                if other is not text:
+                    assert not _overlaps(box, other.get_window_extent(renderer)), (text.get_text(), other.get_text())
+            assert text.get_fontsize() >= 10, (make.__name__, text.get_text())
+        pyplot().close(figure)
+
+
+def test_the_heading_states_the_target_and_the_range_of_panel_times():
+    from sparselt.report.comparison_figures import image_grid_figure, matched_time_text
+    from sparselt.report.plotting import pyplot
+
+    matched, target, pictures = _matched()
+    seconds = [row["seconds_total"] for row in matched]
+    assert target == pytest.approx(max(seconds))  # one run per method: the slowest method's shortest run
+    text = matched_time_text(matched, target)
+    assert text == f"each method at its run closest to {target:.2f} s (panels 0.06-{target:.2f} s)"
+    figure = image_grid_figure(matched, target, pictures)
+    assert [label.get_text() for label in figure.texts] == [text]
+    pyplot().close(figure)
+
+
+def test_the_quality_legend_is_legible():
+    from sparselt.report.comparison_figures import quality_figure
+    from sparselt.report.plotting import pyplot
+
+    figure = quality_figure(_rows(), "dof-sculptures", 0.01)
+    assert figure.legends and all(text.get_fontsize() >= 9 for text in figure.legends[0].get_texts())
+    pyplot().close(figure)

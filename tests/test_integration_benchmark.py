@@ -12,15 +12,20 @@ import numpy as np
 import pytest
 
 from sparselt.experiments.integration_benchmark import (
+    MINIMUM_REACHING,
     IntegrationBenchmarkResult,
+    contributing_coefficients,
     estimate_peak_bytes,
     run_integration_benchmark,
     sample_support,
     thesis_signal,
 )
+from sparselt.experiments.integration_child import measure_in_this_process
 from sparselt.fourier.integration import METHODS
 
 SIZES = (8, 12)
+#: The sizes of ``sparselt reproduce``'s quick scale for chapter 4 (Table 4.1's fit range there).
+QUICK_SIZES = (32, 48, 64)
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +59,10 @@ def test_csv_has_one_measured_row_per_method_and_size(benchmark):
         assert math.isfinite(seconds) and seconds >= 0
         assert peak >= 0 and int(row["baseline_bytes"]) > 0
         assert 1 <= len(row["run_seconds"].split(";")) <= 2
+        assert int(row["contributing_coefficients"]) >= MINIMUM_REACHING and float(row["image_max"]) > 0, row
+        assert 0 <= int(row["uniform_contributing_coefficients"]) <= int(row["contributing_coefficients"])
     assert len(result.measurements) == len(METHODS) * len(SIZES)
+    assert result.empty_image_sizes == ()
 
 
 def test_every_method_agrees_with_convolution(benchmark):
@@ -71,8 +79,11 @@ def test_summary_and_config_are_recorded(benchmark):
     assert record["results"]["agreement_passed"] is True
     assert result.ratio_size == max(SIZES) and result.speed_ratio > 0
     assert set(result.time_exponents) == set(METHODS)
+    assert record["config"]["minimum_reaching"] == MINIMUM_REACHING and record["results"]["empty_image_sizes"] == []
     text = (out / "integration.md").read_text()
     assert "Table 4.1" in text and all(f"`{method}`" in text for method in METHODS)
+    assert "Coefficients reaching the image" in text and "Deviation from the thesis's uniform draw" in text
+    assert f"time fitted over s = {', '.join(map(str, SIZES))}" in text and "Warning" not in text
 
 
 def test_sample_support_is_distinct_and_in_range():
@@ -100,6 +111,86 @@ def test_thesis_signal_follows_the_pseudo_code():
     values = thesis_signal(12, density=0.01, seed=3).values
     assert np.all(values.imag == 0) and values.real.min() >= 0 and values.real.max() < 1
     assert np.array_equal(thesis_signal(12, seed=3).indices, representation.indices)
+
+
+def _on_plane(representation):
+    coordinates = representation.coordinates()
+    return np.all(coordinates[:, 2:] == 0, axis=1)
+
+
+@pytest.mark.parametrize("size, density, minimum, expected", [
+    (16, 1e-4, 4, 4),    # K = 6, the uniform draw has none on the plane: four are moved there
+    (8, 1e-4, 4, 1),     # K = 1: the single coefficient
+    (4, 0.5, 100, 16),   # K = 128, more than the P = 16 frequencies of the plane: all of them
+    (16, 1e-4, 0, 0),    # the uniform draw as it is
+])
+def test_thesis_signal_puts_a_minimum_on_the_integration_plane(size, density, minimum, expected):
+    uniform = thesis_signal(size, density=density, seed=0, minimum_reaching=0)
+    raised = thesis_signal(size, density=density, seed=0, minimum_reaching=minimum)
+    assert raised.sparsity == uniform.sparsity == max(1, int(size ** 4 * density))  # K is the thesis's
+    reaching = max(expected, contributing_coefficients(uniform))
+    assert contributing_coefficients(raised) == int(_on_plane(raised).sum()) == reaching
+    assert np.unique(raised.indices).size == raised.sparsity
+    assert np.array_equal(np.sort(raised.values), np.sort(uniform.values))  # values kept, only moved
+    off_plane = uniform.indices[~_on_plane(uniform)]
+    assert np.isin(raised.indices[~_on_plane(raised)], off_plane).all()  # no new off-plane coefficient
+    assert np.isin(uniform.indices[_on_plane(uniform)], raised.indices).all()  # the drawn on-plane ones stay
+
+
+def test_thesis_signal_leaves_a_draw_with_enough_on_the_plane_unchanged():
+    size, density = 8, 0.05  # K = 204, P / N = 1 / 64: about 3 on the plane
+    for seed in range(20):
+        uniform = thesis_signal(size, density=density, seed=seed, minimum_reaching=0)
+        if contributing_coefficients(uniform) >= 2:
+            raised = thesis_signal(size, density=density, seed=seed, minimum_reaching=2)
+            assert np.array_equal(raised.indices, uniform.indices) and np.array_equal(raised.values, uniform.values)
+
+
+def test_moved_coefficients_land_uniformly_on_the_plane():
+    """Chi-square: over many seeds, the 64 plane frequencies of s = 8 are filled equally often."""
+    counts = np.zeros(64)
+    for seed in range(400):
+        representation = thesis_signal(8, density=0.01, seed=seed, minimum_reaching=4)  # K = 40, ~0.6 drawn there
+        coordinates = representation.coordinates()[_on_plane(representation)]
+        np.add.at(counts, coordinates[:, 0] * 8 + coordinates[:, 1], 1)
+    expected = counts.sum() / 64
+    statistic = float(np.sum((counts - expected) ** 2 / expected))
+    assert counts.sum() >= 1600 and statistic < 103.4  # chi-square, 63 degrees of freedom, p = 0.001
+
+
+def _timed_convolution(size, minimum_reaching=MINIMUM_REACHING):
+    """The child's record of the timed convolution at ``s = size`` with the benchmark's defaults."""
+    return measure_in_this_process({"size": size, "method": "convolution", "seed": 0, "density": 1e-4,
+                                    "minimum_reaching": minimum_reaching, "repeats": 1, "check": False})
+
+
+@pytest.mark.parametrize("size", QUICK_SIZES)
+def test_the_timed_convolution_integrates_a_non_empty_image_at_quick_scale(size):
+    """At every size of ``sparselt reproduce 4 --scale quick``, coefficients reach the timed image."""
+    record = _timed_convolution(size)
+    assert record["contributing_coefficients"] >= 1 and record["image_max"] > 0, record
+    if size in (32, 48):  # seed 0's uniform draw has none there: the check sees what the floor prevents
+        empty = _timed_convolution(size, minimum_reaching=0)
+        assert empty["contributing_coefficients"] == 0 and empty["image_max"] == 0
+
+
+def test_the_timed_convolution_integrates_a_non_empty_image_at_every_reproduce_scale():
+    """The sizes ``sparselt reproduce`` really runs chapter 4 at, every scale (skipped where it has no scales)."""
+    scales = pytest.importorskip("sparselt.experiments.reproduce.scales")
+    sizes = sorted({size for scale in scales.SCALES.values() for size in scale.integration_sizes})
+    records = {size: _timed_convolution(size) for size in sizes}
+    assert [size for size, record in records.items() if record["image_max"] == 0] == [], records
+
+
+def test_warns_when_no_coefficient_reaches_the_image(tmp_path):
+    with pytest.warns(RuntimeWarning, match=r"at s = 8 no coefficient reaches the image"):
+        result = run_integration_benchmark(tmp_path / "out", sizes=(8,), methods=("convolution",), repeats=1,
+                                           minimum_reaching=0, progress=False)
+    assert result.empty_image_sizes == (8,)
+    item = result.measurement("convolution", 8)
+    assert item.contributing_coefficients == 0 and item.image_max == 0
+    text = (tmp_path / "out" / "integration.md").read_text()
+    assert "**Warning:** at s = 8 no coefficient reaches the image" in text
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -140,6 +231,7 @@ def test_estimated_peak_memory_bounds_the_measured_one(method):
     ({"density": 0.0}, "density"),
     ({"sizes": (8.5,)}, "integers"),
     ({"check_max_size": -1}, "check_max_size"),
+    ({"minimum_reaching": -1}, "minimum_reaching"),
 ])
 def test_rejects_bad_arguments(tmp_path, arguments, message):
     with pytest.raises(ValueError, match=message):

@@ -16,6 +16,8 @@ import pytest
 
 from sparselt.report import Table
 from sparselt.report.page import STYLE
+from sparselt.report.table import thesis_display_text
+from sparselt.thesis_numbers import thesis_tables
 
 HOSTILE = 'a, "quoted" | piped\nsecond line'
 
@@ -73,7 +75,7 @@ def test_a_hostile_cell_round_trips_through_the_csv_reader():
     table = _table()
     rows = list(csv.reader(io.StringIO(table.csv())))
     assert rows[0] == ["scene", "thesis value", "ours", "note"]
-    assert rows[1] == ["first", "0,849482", "0.8512", HOSTILE]
+    assert rows[1] == ["first", "0.849482", "0.8512", HOSTILE]  # the thesis's decimal comma shown as a point
     assert rows[2] == ["x < y & z > w", "1", "2", ""]  # numbers as text as given, None empty
     assert len(rows) == 3  # no caption, no notes: header and rows only
 
@@ -119,6 +121,54 @@ def test_a_table_survives_its_json_record():
     assert again == table and again.thesis_columns == [0]
     legacy = {"caption": "c", "columns": ["a"], "kinds": ["thesis"], "rows": [["r", ["1"]]]}  # before notes existed
     assert Table.from_record(legacy).grid() == [["", "a"], ["r", "1"]]
+
+
+@pytest.mark.parametrize("printed, shown", [
+    ("0,849482", "0.849482"),  # Table 5.1, Cornell R, Gini Magnitude
+    ("0,845120", "0.845120"),  # trailing zeros kept: the thesis's digits
+    ("0,689", "0.689"),  # a three-digit fraction after 0 is a decimal, not thousands
+    ("489", "489"),  # Table 6.2: integers unchanged
+    ("553647600", "553647600"),  # Table 6.1: total samples
+    ("$O(N)$", "O(N)"),  # Table 4.1
+    ("$O(KP)$", "O(KP)"),
+    ("$O(K + P)$", "O(K + P)"),
+    ("$O(N \\log(N))$", "O(N log N)"),
+    ("$O(P \\log(P))$", "O(P log P)"),
+    ("O(P \\log(P))", "O(P log P)"),  # dollars already stripped by the caller (thesis_complexity)
+    ("$N^{2}$", "N\u00b2"), ("$N^2 \\cdot K$", "N\u00b2 \u00b7 K"), ("$\\alpha$", "\u03b1"),
+    ("553,647,600", "553,647,600"), ("71,722", "71,722"),  # thousands separators are not decimal commas
+    ("-", "-"), ("", ""), ("a note, with a comma", "a note, with a comma"),
+])
+def test_thesis_display_text(printed, shown):
+    assert thesis_display_text(printed) == shown
+
+
+def test_every_thesis_cell_displays_with_a_decimal_point_and_no_latex():
+    """Every cell of thesis_tables.json: numbers read back as the transcribed value, formulas as plain text."""
+    cells = [cell for table in thesis_tables()["tables"].values() for row in table["rows"]
+             for cell in row["cells"].values()]
+    assert len(cells) > 100
+    for cell in cells:
+        shown = thesis_display_text(cell["text"])
+        assert "," not in shown and "$" not in shown and "\\" not in shown and "{" not in shown, (cell, shown)
+        if cell["value"] is not None:
+            assert float(shown) == pytest.approx(cell["value"], rel=1e-12), cell
+
+
+def test_thesis_cells_are_shown_converted_in_every_rendering_and_kept_as_given():
+    table = Table(caption="c", columns=["thesis", "ours", "setting"], kinds=["thesis", "ours", ""],
+                  rows=[("r", ["$O(N \\log(N))$", "0,5", "0,5"]), ("s", ["0,6042", "1", "x"])])
+    assert table.rows[1] == ("s", ["0,6042", "1", "x"])  # the printed text stays in the object (and its record)
+    assert table.grid()[1:] == [["r", "O(N log N)", "0,5", "0,5"], ["s", "0.6042", "1", "x"]]  # only thesis cells
+    assert "| s | 0.6042 | 1 | x |" in table.markdown() and "0,6042" not in table.markdown()
+    assert "<td class=\"thesis\">O(N log N)</td>" in table.html() and "\\log" not in table.html()
+    assert "0.6042" in table.csv() and "0,6042" not in table.csv()
+    assert '<table id="t-1">' in table.html(identifier="t-1")
+
+
+def test_thesis_display_text_needs_text():
+    with pytest.raises(TypeError, match="a string"):
+        thesis_display_text(0.5)
 
 
 @pytest.mark.parametrize("arguments, error, message", [

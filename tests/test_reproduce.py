@@ -42,11 +42,15 @@ class _Collector(HTMLParser):
     def __init__(self):
         super().__init__()
         self.links, self.images, self.tables, self.cells = [], [], [], []
+        self.fragments, self.identifiers = [], []  # links within the page ("#id"), and the ids they may target
 
     def handle_starttag(self, tag, attributes):
         attributes = dict(attributes)
+        if attributes.get("id"):
+            self.identifiers.append(attributes["id"])
         if tag == "a":
-            self.links.append(attributes.get("href"))
+            href = attributes.get("href")
+            (self.fragments if href.startswith("#") else self.links).append(href)
         elif tag == "img":
             self.images.append(attributes.get("src"))
         elif tag == "table":
@@ -55,9 +59,9 @@ class _Collector(HTMLParser):
             self.tables[-1].append(attributes.get("class", ""))
 
 
-def test_reproduce_chapter_4_quick_page_loads_in_a_browser(tmp_path, chromium):
+def test_reproduce_chapter_4_page_loads_in_a_browser(tmp_path, chromium):
     out = tmp_path / "report"
-    page = reproduce("4", "quick", out, progress=False)
+    page = reproduce("4", "tiny", out, progress=False)
     dom = rendered_dom(chromium, page)
     body = re.search(r"<body([^>]*)>", dom).group(1)
     assert re.search(r'data-images="(\d+)"', body) and int(re.search(r'data-images="(\d+)"', body).group(1)) >= 2
@@ -68,9 +72,12 @@ def test_reproduce_chapter_4_quick_page_loads_in_a_browser(tmp_path, chromium):
     for target in parsed.links + parsed.images:  # every link and image resolves, relative to the page
         assert not target.startswith(("http:", "https:", "/")), target
         assert (out / target).exists(), target
-    assert "Table 4.1" in dom and "O(P \\log(P))" in dom and "faster than sum integration" in dom
+    assert "Table 4.1" in dom and "O(P log P)" in dom and "Thesis (4.3): convolution integration is the fastest" in dom
+    assert re.search(r"Ours on s = 32 \(N = 1,048,576\): the (same|OPPOSITE) direction", dom)
+    assert "\\log" not in dom  # the thesis's LaTeX shown as plain text
+    assert parsed.fragments and all(target[1:] in parsed.identifiers for target in parsed.fragments)
     stamp = (out / "cells" / "chapter4.json").stat().st_mtime_ns
-    assert main(["reproduce", "--chapter", "4", "--out", str(out), "--no-progress"]) == 0  # resumes
+    assert main(["reproduce", "--chapter", "4", "--scale", "tiny", "--out", str(out), "--no-progress"]) == 0  # resumes
     assert (out / "cells" / "chapter4.json").stat().st_mtime_ns == stamp
 
 
@@ -121,6 +128,35 @@ def test_plugin_methods_join_chapter_8_and_the_folder_identity(tmp_path, monkeyp
     assert plugin_methods_for_chapter_8(["median_of_means"]) == (("median-of-means",), ())
     assert plugin_methods_for_chapter_8([]) == ((), ())
     out = tmp_path / "report"
-    reproduce("4", "quick", out, progress=False, plugins=["median_of_means"])
+    reproduce("4", "tiny", out, progress=False, plugins=["median_of_means"])
     with pytest.raises(ValueError, match=r"plugin_methods: \["):
-        reproduce("4", "quick", out, progress=False)
+        reproduce("4", "tiny", out, progress=False)
+
+
+def test_the_page_has_contents_and_full_width_figures_that_open_at_full_size(tmp_path):
+    """A table of contents links every section, table and figure; every image is a link to its own file."""
+    from sparselt.report import Table
+    from sparselt.report.page import STYLE
+
+    for name in ("a.png", "b.png"):
+        (tmp_path / name).write_bytes(b"png")
+    table = Table(caption="Table 7.1: Gini", columns=["thesis Time"], kinds=["thesis"], rows=[("gamma 1", ["0,6042"])])
+    sections = [Section(title="Chapter 7: gamma", tables=[table], figures=[Figure("a.png", "Figure A")]),
+                Section(title="Chapter 7: gamma", figures=[Figure("b.png", "Figure <B>")])]  # the same title twice
+    text = write_page(str(tmp_path / "index.html"), "t", sections, {"versions": {}, "git": None})
+    text = (tmp_path / "index.html").read_text()
+    parsed = _Collector()
+    parsed.feed(text)
+    assert len(parsed.identifiers) == len(set(parsed.identifiers))  # unique anchors
+    assert sorted(target[1:] for target in parsed.fragments) == sorted(parsed.identifiers)  # each linked once
+    contents = text[text.index("<nav"):text.index("</nav>")]
+    for caption in ("Chapter 7: gamma", "Table 7.1: Gini", "Figure A", "Figure &lt;B&gt;", "Provenance"):
+        assert caption in contents, caption
+    assert contents.index("Table 7.1") < contents.index("Figure A") < contents.rindex("Chapter 7") < \
+        contents.index("Figure &lt;B&gt;")  # nested under their sections, in page order
+    assert re.findall(r'<h2 id="([^"]+)">', text) == ["chapter-7-gamma", "chapter-7-gamma-2", "provenance"]
+    assert '<table id="chapter-7-gamma-table-1">' in text and '<figure id="chapter-7-gamma-2-figure-1">' in text
+    for name in ("a.png", "b.png"):
+        assert re.search(rf'<a href="{name}"[^>]*><img src="{name}"', text)
+    assert "45%" not in STYLE and re.search(r"figure img \{[^}]*width: 100%", STYLE)
+    assert ">0.6042<" in text  # the thesis's decimal comma as a point

@@ -130,10 +130,10 @@ def test_case_7_reproduce_refuses_another_scale_in_the_same_folder(tmp_path):
     from sparselt.experiments.reproduce import reproduce
 
     out = tmp_path / "reproduce"
-    reproduce("4", "quick", out, progress=False)
-    with pytest.raises(ValueError, match="scale: 'quick' recorded, 'thesis' now"):
+    reproduce("4", "tiny", out, progress=False)
+    with pytest.raises(ValueError, match="scale: 'tiny' recorded, 'thesis' now"):
         reproduce("5", "thesis", out, progress=False)
-    assert json.loads((out / MANIFEST_FILE).read_text())["identity"] == {"scale": "quick"}
+    assert json.loads((out / MANIFEST_FILE).read_text())["identity"] == {"scale": "tiny"}
 
 
 def test_case_7_a_signal_of_another_configuration_is_not_reused(tmp_path):

@@ -291,7 +291,9 @@ def build_parser():
         description="Run the experiments of a thesis chapter (resumable) and write DIR/index.html: each thesis "
                     "table beside our measurements, figures, verdicts, wall times and provenance.")
     reproduce.add_argument("--chapter", default="all", help="4, 5, 6, 7, 8 or all (default: all reproduced so far)")
-    reproduce.add_argument("--scale", default="quick", help="quick (minutes) or thesis (the thesis's sizes; long)")
+    reproduce.add_argument("--scale", default="quick",
+                           help="tiny (a minute: the pipeline only), quick (minutes), medium (1-2 h on 2 cores, the "
+                                "thesis's 4-D sizes) or thesis (the thesis's sizes; about a day)")
     reproduce.add_argument("--out", required=True, help="output folder (rerun to resume)")
     reproduce.add_argument("--overwrite", action="store_true",
                            help="replace a folder holding the other scale (only the files sparselt wrote there)")

@@ -96,6 +96,25 @@ def thesis_quantity(quantity):
     return [float(value) for value in values]
 
 
+def per_thesis_row(quantity, lookup):
+    """Our values of a tabulated quantity, in the thesis's row order: ``lookup(label)`` per selected row.
+
+    ``label`` is the thesis's row label (a tuple for Tables 5.x: ``(scene, channel)``); rows where ``lookup``
+    returns None (not measured here) are left out.
+    """
+    rows = thesis_table(quantity["table"])["rows"]
+    wanted = quantity.get("rows")
+    values = []
+    for row in rows:
+        if wanted is not None and _label_head(row["label"]) not in wanted:
+            continue
+        label = tuple(row["label"]) if isinstance(row["label"], list) else row["label"]
+        value = lookup(label)
+        if value is not None:
+            values.append(float(value))
+    return values
+
+
 def quantity_name(quantity):
     """A short name of a quantity for sentences ('Table 7.1 Frequency', 'SSIM at fraction 1e-4')."""
     if "name" in quantity:
@@ -252,5 +271,5 @@ def judge(claim, ours, *, thesis=None, subject=""):
     return Finding(claim, agrees, thesis_holds, thesis_sentence, our_sentence)
 
 
-__all__ = ["CLAIM_TYPES", "Finding", "figure_finding", "judge", "quantity_name", "table_claim", "table_claims",
+__all__ = ["CLAIM_TYPES", "Finding", "figure_finding", "judge", "per_thesis_row", "quantity_name", "table_claim", "table_claims",
            "thesis_findings", "thesis_quantity"]

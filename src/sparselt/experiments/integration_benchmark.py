@@ -33,12 +33,25 @@ that dies (killed for memory, say) is recorded as failed. Neither stops the
 benchmark. Sizes ``s <= check_max_size`` are checked against
 ``'convolution'``.
 
+Only coefficients on the integration plane reach the image, and a uniform
+draw at ``K = N / 10^4`` puts ``10^-4 s^2`` there on average (0.1 at
+``s = 32``): drawn as the thesis says, the methods would be timed integrating
+an all-zero image. The signal therefore has at least
+``min(minimum_reaching, K, P)`` coefficients on the plane, a documented
+deviation from the uniform draw that leaves ``N``, ``K`` and ``P``, and so
+every method's cost, unchanged
+(:mod:`~sparselt.experiments.integration_signal`). Every measurement records
+how many coefficients reach the image and the largest value of the timed
+call's image; a size where none reach it is named in a
+:class:`RuntimeWarning`, in the report and in
+:attr:`IntegrationBenchmarkResult.empty_image_sizes`.
+
 The output is an :class:`~sparselt.storage.folder.ExperimentFolder` whose
-identity is the sizes, methods, seed, repeats, density and check size: a
-rerun with the same identity resumes (every measured ``(method, s)`` is a
-cell and is not measured again), one with another identity is refused unless
-``overwrite``, and a folder holding files sparselt did not write is refused
-either way.
+identity is the sizes, methods, seed, repeats, density, check size and
+``minimum_reaching``: a rerun with the same identity resumes (every measured
+``(method, s)`` is a cell and is not measured again), one with another
+identity is refused unless ``overwrite``, and a folder holding files
+sparselt did not write is refused either way.
 
 References
 ----------
@@ -50,6 +63,7 @@ from __future__ import annotations
 import numbers
 import os
 import sys
+import warnings
 
 import numpy as np
 
@@ -68,6 +82,7 @@ from .integration_report import (
     THESIS_ROWS,
     IntegrationBenchmarkResult,
     IntegrationMeasurement,
+    empty_image_warning,
     format_bytes,
     format_table,
     measurement_from_record,
@@ -77,7 +92,15 @@ from .integration_report import (
     thesis_complexity,
     write_report,
 )
-from .integration_signal import DIMENSIONS, KEEP_AXES, THESIS_DENSITY, coefficient_count, thesis_signal
+from .integration_signal import (
+    DIMENSIONS,
+    KEEP_AXES,
+    MINIMUM_REACHING,
+    THESIS_DENSITY,
+    coefficient_count,
+    contributing_coefficients,
+    thesis_signal,
+)
 
 __all__ = [
     "BYTES_PER_VALUE",
@@ -92,6 +115,7 @@ __all__ = [
     "KEEP_AXES",
     "MAXIMUM_SIGNAL_SIZE",
     "MEMORY_FLOOR_BYTES",
+    "MINIMUM_REACHING",
     "REPEAT_SECONDS",
     "THESIS_DENSITY",
     "THESIS_ROWS",
@@ -99,6 +123,7 @@ __all__ = [
     "IntegrationBenchmarkResult",
     "IntegrationMeasurement",
     "coefficient_count",
+    "contributing_coefficients",
     "estimate_peak_bytes",
     "format_table",
     "largest_size",
@@ -219,7 +244,7 @@ def _available_bytes():
     return meminfo_bytes("MemAvailable")
 
 
-def _measure(size, method, *, seed, density, repeats, check_max_size):
+def _measure(size, method, *, seed, density, minimum_reaching, repeats, check_max_size):
     """Measure ``method`` at ``s = size`` in a child process, or record why not.
 
     Parameters
@@ -228,7 +253,7 @@ def _measure(size, method, *, seed, density, repeats, check_max_size):
         ``s``.
     method : str
         The integration method.
-    seed, density, repeats, check_max_size
+    seed, density, minimum_reaching, repeats, check_max_size
         As in :func:`run_integration_benchmark`.
 
     Returns
@@ -247,8 +272,8 @@ def _measure(size, method, *, seed, density, repeats, check_max_size):
     if available is not None and estimate + INTERPRETER_BYTES > 0.9 * available:
         return IntegrationMeasurement(**common, status="skipped", estimated_bytes=estimate,
                                       reason=f"needs about {format_bytes(estimate)}, only {format_bytes(available)} available")
-    task = {"size": size, "method": method, "seed": seed, "density": density, "repeats": repeats,
-            "check": size <= check_max_size}
+    task = {"size": size, "method": method, "seed": seed, "density": density, "minimum_reaching": minimum_reaching,
+            "repeats": repeats, "check": size <= check_max_size}
     record, reason = run_child(task, _CHILD_MODULE)
     if record is None:
         return IntegrationMeasurement(**common, status="failed", estimated_bytes=estimate, reason=reason)
@@ -261,10 +286,12 @@ def _measure(size, method, *, seed, density, repeats, check_max_size):
         **common, status="measured", reason="; ".join(notes), seconds=min(record["seconds"]),
         run_seconds=tuple(record["seconds"]), peak_bytes=record["peak_bytes"], baseline_bytes=record["baseline_bytes"],
         estimated_bytes=estimate, peak_reset=record["peak_reset"],
-        contributing_coefficients=record["contributing_coefficients"], check_error=record["check_error"])
+        contributing_coefficients=record["contributing_coefficients"],
+        uniform_contributing_coefficients=record["uniform_contributing_coefficients"], image_max=record["image_max"],
+        check_error=record["check_error"])
 
 
-def _validate(sizes, methods, seed, repeats, density, check_max_size):
+def _validate(sizes, methods, seed, repeats, density, check_max_size, minimum_reaching):
     """The arguments of :func:`run_integration_benchmark`, checked and normalised (sizes ascending).
 
     Raises
@@ -295,6 +322,7 @@ def _validate(sizes, methods, seed, repeats, density, check_max_size):
     seed = check_integer("seed", seed, 0)
     repeats = check_integer("repeats", repeats, 1)
     check_max_size = check_integer("check_max_size", check_max_size, 0)
+    minimum_reaching = check_integer("minimum_reaching", minimum_reaching, 0)
     try:
         density = float(density)
     except (TypeError, ValueError):
@@ -302,11 +330,12 @@ def _validate(sizes, methods, seed, repeats, density, check_max_size):
     if not 0 < density <= 1:
         raise ValueError(f"density (the fraction K / N) must be in (0, 1], got {density!r}")
     _check_sizes_fit(sizes, methods, density)
-    return tuple(sorted(sizes)), methods, int(seed), int(repeats), density, int(check_max_size)
+    return tuple(sorted(sizes)), methods, int(seed), int(repeats), density, int(check_max_size), minimum_reaching
 
 
 def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed=0, repeats=5,
-                              density=THESIS_DENSITY, check_max_size=CHECK_MAX_SIZE, overwrite=False, progress=True):
+                              density=THESIS_DENSITY, check_max_size=CHECK_MAX_SIZE,
+                              minimum_reaching=MINIMUM_REACHING, overwrite=False, progress=True):
     """Measure Table 4.1 and Figures 4.1-4.2 and write them into folder ``out``.
 
     Parameters
@@ -328,6 +357,11 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
         ``K / N``; the thesis's ``10^-4`` by default.
     check_max_size : int, optional
         Check every method against ``'convolution'`` at sizes up to this ``s``.
+    minimum_reaching : int, optional
+        At least ``min(minimum_reaching, K, P)`` coefficients of every signal
+        lie on the integration plane and so reach the image
+        (:data:`MINIMUM_REACHING` by default); 0 is the thesis's uniform
+        draw, whose image is all zero at most sizes (warned about).
     overwrite : bool, optional
         Replace a folder holding another benchmark (another identity); only
         the files sparselt wrote there are removed.
@@ -338,6 +372,12 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
     Returns
     -------
     IntegrationBenchmarkResult
+
+    Warns
+    -----
+    RuntimeWarning
+        At sizes where no coefficient reaches the image (only possible with
+        ``minimum_reaching=0``): the methods were timed integrating zeros.
 
     Raises
     ------
@@ -359,12 +399,12 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
     ----------
     Thesis section 4.3 (methodology), Table 4.1, Figures 4.1 and 4.2.
     """
-    sizes, methods, seed, repeats, density, check_max_size = _validate(sizes, methods, seed, repeats, density,
-                                                                       check_max_size)
+    sizes, methods, seed, repeats, density, check_max_size, minimum_reaching = _validate(
+        sizes, methods, seed, repeats, density, check_max_size, minimum_reaching)
     if not os.path.exists("/proc/self/status"):
         raise RuntimeError("peak memory is read from /proc/self/status, which this system lacks (Linux only)")
     identity = {"sizes": list(sizes), "methods": list(methods), "seed": seed, "repeats": repeats, "density": density,
-                "check_max_size": check_max_size}
+                "check_max_size": check_max_size, "minimum_reaching": minimum_reaching}
     folder = ExperimentFolder(out, kind="bench-integrate", identity=identity, overwrite=overwrite)
     folder.inspect()  # refusals (foreign files, another identity, a lock) before anything runs
     config = dict(identity, **{
@@ -375,6 +415,8 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
         "keep_axes": list(KEEP_AXES),
         "dtype": "complex128",
         "values": "uniform in [0, 1)",
+        "support": ("uniform without repetition, then at least min(minimum_reaching, K) coefficients moved onto the "
+                    "integration plane" if minimum_reaching else "uniform without repetition"),
         "time_block_values": TIME_BLOCK_VALUES,
         "check_tolerance": CHECK_TOLERANCE,
         "memory_floor_bytes": MEMORY_FLOOR_BYTES,
@@ -395,8 +437,8 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
                     item = measurement_from_record(record)
                     note = " (measured by an earlier run)"
                 else:
-                    item = _measure(size, method, seed=seed, density=density, repeats=repeats,
-                                    check_max_size=check_max_size)
+                    item = _measure(size, method, seed=seed, density=density, minimum_reaching=minimum_reaching,
+                                    repeats=repeats, check_max_size=check_max_size)
                     note = ""
                     if item.measured:  # skips and failures depend on this machine's state: tried again on a rerun
                         folder.record_cell(name, measurement_record(item))
@@ -407,6 +449,9 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
         folder.complete(measured=sum(item.measured for item in measurements), cells=total)
     if progress:
         print(table)
+    warning = empty_image_warning(result)
+    if warning is not None:
+        warnings.warn(f"integration benchmark: {warning}", RuntimeWarning, stacklevel=2)
     return result
 
 

@@ -8,12 +8,12 @@ that method's own, including memory that ducc0 and numpy allocate in C.
 How parent and child talk
 -------------------------
 The parent (:func:`run_child`) passes the task as one JSON argument:
-``size``, ``method``, ``seed``, ``density``, ``repeats`` and ``check``. The
-child prints one line, ``RESULT_PREFIX`` followed by a JSON record, to
-standard output and exits with status 0; on any exception it prints the
-traceback to standard error and exits with status 1. The parent gets the
-record, or a reason: a timeout, a signal (9: killed, out of memory?), or the
-last line of the child's standard error.
+``size``, ``method``, ``seed``, ``density``, ``minimum_reaching``, ``repeats``
+and ``check``. The child prints one line, ``RESULT_PREFIX`` followed by a
+JSON record, to standard output and exits with status 0; on any exception it
+prints the traceback to standard error and exits with status 1. The parent
+gets the record, or a reason: a timeout, a signal (9: killed, out of
+memory?), or the last line of the child's standard error.
 
 How memory is measured
 ----------------------
@@ -28,7 +28,10 @@ The child
    ``/proc/self/status`` as the baseline,
 4. runs ``integrate`` once and reports ``VmHWM - baseline`` as the peak, then
    repeats the call for timing (best of the runs),
-5. when the task asks for it, checks the method against ``'convolution'``.
+5. reports how many coefficients reach the image, in the measured signal and
+   in the uniform draw it was made from, and the largest value of the image
+   the timed call returned (zero: the method was timed integrating nothing),
+6. when the task asks for it, checks the method against ``'convolution'``.
 
 References
 ----------
@@ -63,22 +66,27 @@ def measure_in_this_process(task):
     Parameters
     ----------
     task : dict
-        ``size``, ``method``, ``seed``, ``density``, ``repeats`` (timed calls
-        at most; fewer once they have taken ``REPEAT_SECONDS``) and ``check``
-        (compare with ``'convolution'``).
+        ``size``, ``method``, ``seed``, ``density``, ``minimum_reaching`` (see
+        :func:`~sparselt.experiments.integration_signal.thesis_signal`),
+        ``repeats`` (timed calls at most; fewer once they have taken
+        ``REPEAT_SECONDS``) and ``check`` (compare with ``'convolution'``).
 
     Returns
     -------
     dict
         JSON-able: ``seconds`` (every timed call), ``peak_bytes``,
         ``baseline_bytes``, ``preexisting_bytes`` (``VmHWM - VmRSS`` before
-        the call), ``peak_reset``, ``contributing_coefficients``,
-        ``check_error`` (``None`` when not checked) and ``output_shape``.
+        the call), ``peak_reset``, ``contributing_coefficients`` (reaching
+        the image), ``uniform_contributing_coefficients`` (reaching it in the
+        uniform draw before ``minimum_reaching`` moved any), ``image_max``
+        (largest ``|value|`` of the timed call's image), ``check_error``
+        (``None`` when not checked) and ``output_shape``.
     """
     size, method, seed = int(task["size"]), task["method"], int(task["seed"])
     density, repeats = float(task["density"]), int(task["repeats"])
+    minimum_reaching = int(task["minimum_reaching"])
     integrate(thesis_signal(4, density=0.05, seed=seed), KEEP_AXES, method)  # warm-up
-    representation = thesis_signal(size, density=density, seed=seed)
+    representation = thesis_signal(size, density=density, seed=seed, minimum_reaching=minimum_reaching)
     gc.collect()
     reset = reset_peak()
     baseline = status_bytes("VmRSS")
@@ -109,6 +117,9 @@ def measure_in_this_process(task):
         "preexisting_bytes": int(preexisting),
         "peak_reset": reset,
         "contributing_coefficients": contributing_coefficients(representation),
+        "uniform_contributing_coefficients": contributing_coefficients(
+            thesis_signal(size, density=density, seed=seed, minimum_reaching=0)),
+        "image_max": float(np.abs(result).max()),
         "check_error": check_error,
         "output_shape": list(result.shape),
     }

@@ -10,11 +10,14 @@ Files written into the benchmark's folder
 -----------------------------------------
 ``integration.csv``
     One row per (method, s): N, K, P, status, best time, every run's time,
-    peak memory, baseline, estimate, agreement error, reason.
+    peak memory, baseline, estimate, the coefficients reaching the image (in
+    the measured signal and in the uniform draw), the largest value of the
+    timed call's image, agreement error, reason.
 ``integration.md``
     The measured Table 4.1: time and memory per method and ``s``, fitted
-    exponents next to Table 4.1's complexities, and ``sum / convolution``
-    ratios at the largest ``s``.
+    exponents next to Table 4.1's complexities, ``sum / convolution``
+    ratios at the largest ``s``, and per ``s`` how many coefficients reach
+    the image (a warning names every size whose image is all zero).
 ``figure_4_1_time.png``, ``figure_4_2_memory.png``
     Time and peak memory against ``N``, log-log, one line per method
     (thesis Figures 4.1 and 4.2).
@@ -89,7 +92,8 @@ def thesis_complexity(method):
 
 
 CSV_COLUMNS = ("method", "s", "N", "K", "P", "status", "seconds", "run_seconds", "peak_bytes", "baseline_bytes",
-               "estimated_bytes", "peak_reset", "contributing_coefficients", "check_error", "reason")
+               "estimated_bytes", "peak_reset", "contributing_coefficients", "uniform_contributing_coefficients",
+               "image_max", "check_error", "reason")
 
 REPORT_FILES = ("integration.csv", "integration.md", "figure_4_1_time.png", "figure_4_2_memory.png", "config.json")
 
@@ -102,8 +106,13 @@ class IntegrationMeasurement:
     available; ``reason`` says how much) or ``'failed'`` (the child process
     died or raised; ``reason`` says how). ``seconds`` is the best of
     ``run_seconds``; ``peak_bytes`` is ``VmHWM - VmRSS`` around the first
-    call; ``check_error`` the largest difference from ``'convolution'``
-    relative to the output scale (``None`` when not checked).
+    call; ``contributing_coefficients`` the coefficients that reach the
+    image (integrated coordinates zero), ``uniform_contributing_coefficients``
+    those that did in the uniform draw before the benchmark's
+    ``minimum_reaching`` moved any onto the plane; ``image_max`` the largest
+    ``|value|`` of the image the timed call returned; ``check_error`` the
+    largest difference from ``'convolution'`` relative to the output scale
+    (``None`` when not checked).
     """
 
     method: str
@@ -120,6 +129,8 @@ class IntegrationMeasurement:
     estimated_bytes: int | None = None
     peak_reset: bool | None = None
     contributing_coefficients: int | None = None
+    uniform_contributing_coefficients: int | None = None
+    image_max: float | None = None
     check_error: float | None = None
 
     @property
@@ -147,6 +158,9 @@ class IntegrationBenchmarkResult:
     agreement_passed : bool or None
         Every checked method agreed with ``'convolution'`` within
         ``CHECK_TOLERANCE``; ``None`` when no size was small enough to check.
+    empty_image_sizes : tuple of int
+        The sizes whose measured signal has no coefficient reaching the image:
+        every method there was timed integrating an all-zero image.
     files : dict
         Name -> path of every file written.
     """
@@ -159,6 +173,7 @@ class IntegrationBenchmarkResult:
     speed_ratio: float | None
     memory_ratio: float | None
     agreement_passed: bool | None
+    empty_image_sizes: tuple = ()
     files: dict = field(default_factory=dict)
 
     def measurement(self, method, size):
@@ -230,7 +245,18 @@ def summarise(measurements, sizes, methods):
     checked = [item for item in measurements if item.check_error is not None]
     agreement = all(item.check_error <= CHECK_TOLERANCE for item in checked) if checked else None
     return IntegrationBenchmarkResult(measurements, time_exponents, memory_exponents, fit_sizes, ratio_size,
-                                      speed_ratio, memory_ratio, agreement)
+                                      speed_ratio, memory_ratio, agreement, empty_image_sizes(measurements))
+
+
+def reaching_coefficients(measurements):
+    """Size -> the coefficients reaching the image in its measured signal (sizes with a measurement only)."""
+    return {item.size: item.contributing_coefficients for item in measurements
+            if item.contributing_coefficients is not None}
+
+
+def empty_image_sizes(measurements):
+    """The sizes whose measured signal has no coefficient reaching the image, ascending."""
+    return tuple(sorted(size for size, count in reaching_coefficients(measurements).items() if count == 0))
 
 
 def summary_record(result):
@@ -253,6 +279,9 @@ def summary_record(result):
         "sum_over_convolution_time": result.speed_ratio,
         "sum_over_convolution_memory": result.memory_ratio,
         "agreement_passed": result.agreement_passed,
+        "empty_image_sizes": list(result.empty_image_sizes),
+        "reaching_coefficients": {str(size): count for size, count in
+                                  reaching_coefficients(result.measurements).items()},
         "measurements": [dict(item.__dict__) for item in result.measurements],
     }
 
@@ -332,8 +361,10 @@ def complexity_table(result, config):
         rows.append((f"{THESIS_ROWS[method]} (`{method}`)", [
             time_complexity, time_expected, format_exponent(result.time_exponents[method]), memory_complexity,
             memory_expected, format_exponent(result.memory_exponents[method]) + memory_note]))
+    fitted = sorted({size for sizes in result.fit_sizes["time"].values() for size in sizes})
+    over = f", time fitted over s = {', '.join(map(str, fitted))}" if fitted else ""
     return Table(
-        caption="Complexity (Table 4.1) and fitted exponents e (quantity ~ N^e)", label_header="method",
+        caption=f"Complexity (Table 4.1) and fitted exponents e (quantity ~ N^e){over}", label_header="method",
         columns=["Table 4.1 time", "expected e", "fitted e (time)", "Table 4.1 memory", "expected e",
                  "fitted e (memory)"],
         kinds=["thesis", "", "ours", "thesis", "", "ours"], rows=rows,
@@ -349,6 +380,59 @@ def measurement_table(result, config, quantity):
         caption="Time" if quantity == "time" else "Peak memory", label_header="method",
         columns=[f"s={size} (N={size ** DIMENSIONS:.2g})" for size in sizes], kinds=["ours"] * len(sizes),
         rows=[(method, [_cell(lookup.get((method, size)), quantity) for size in sizes]) for method in config["methods"]])
+
+
+def reaching_table(result, config):
+    """Per ``s``: the coefficients that reach the image, expected and drawn uniformly, and in the measured signal.
+
+    Returns
+    -------
+    Table or None
+        ``None`` when nothing was measured.
+    """
+    sizes = [size for size in config["sizes"] if any(item.size == size and item.contributing_coefficients is not None
+                                                     for item in result.measurements)]
+    if not sizes:
+        return None
+    first = {}
+    for item in result.measurements:
+        if item.contributing_coefficients is not None:
+            first.setdefault(item.size, item)
+    convolution = {item.size: item for item in result.measurements if item.method == "convolution" and item.measured}
+
+    def expected(item):
+        return f"{item.coefficients * item.points / item.signal_size:.2g}"
+
+    def optional(value, text=str):
+        return "-" if value is None else text(value)
+
+    rows = [
+        ("K (coefficients)", [str(first[size].coefficients) for size in sizes]),
+        ("on the plane, uniform draw: expected (K P / N)", [expected(first[size]) for size in sizes]),
+        ("on the plane, uniform draw: drawn", [optional(first[size].uniform_contributing_coefficients)
+                                               for size in sizes]),
+        ("on the plane, measured signal (reach the image)", [str(first[size].contributing_coefficients)
+                                                             for size in sizes]),
+        ("largest |value| of the timed convolution's image",
+         [optional(getattr(convolution.get(size), "image_max", None), lambda value: f"{value:.3g}") for size in sizes]),
+    ]
+    minimum = config.get("minimum_reaching", 0)
+    how = (f"Where the uniform draw has fewer than min({minimum}, K) there, off-plane coefficients (uniformly chosen, "
+           "values kept) are moved to free plane frequencies until it has: a deviation from the thesis's uniform draw "
+           "that leaves N, K and P unchanged (see sparselt.experiments.integration_signal)." if minimum else
+           "The uniform draw is used as it is (minimum_reaching = 0).")
+    return Table(caption="Coefficients reaching the image (integrated coordinates zero)", label_header="per s",
+                 columns=[f"s={size}" for size in sizes], kinds=["ours"] * len(sizes), rows=rows,
+                 notes=[f"Only coefficients on the integration plane (P = s^2 of the N = s^4 frequencies) reach the "
+                        f"image: a uniform draw of K = N x {config['density']:g} puts K P / N there on average. {how}"])
+
+
+def empty_image_warning(result):
+    """The warning for sizes whose timed integrations produced an all-zero image; ``None`` when there are none."""
+    if not result.empty_image_sizes:
+        return None
+    return (f"at s = {', '.join(map(str, result.empty_image_sizes))} no coefficient reaches the image: every method "
+            "there was timed integrating an all-zero image. Raise minimum_reaching (at least 1) or the sizes.")
 
 
 def format_table(result, config):
@@ -376,6 +460,13 @@ def format_table(result, config):
         f"Time: best of up to {config['repeats']} calls. Memory: peak resident memory of the `integrate` call in a "
         f"fresh process (VmHWM minus VmRSS just before the call), including ducc0's and numpy's allocations. "
         f"{config['fft_threads']} FFT threads, {config['cpu_count']} cores."])
+    if config.get("minimum_reaching"):
+        introduction += (f" Deviation from the thesis's uniform draw: at least min({config['minimum_reaching']}, K) "
+                         "coefficients lie on the integration plane, so that the image is not all zero (see "
+                         "'Coefficients reaching the image').")
+    warning = empty_image_warning(result)
+    if warning is not None:
+        introduction += f"\n\n**Warning:** {warning}"
     ratio = ["## sum / convolution", ""]
     if result.ratio_size is None:
         ratio.append("Not available: 'sum' and 'convolution' were not both measured at any size.")
@@ -401,17 +492,13 @@ def format_table(result, config):
                          f"relative {CHECK_TOLERANCE:g} (largest error {worst:.2g}), on the measured signal and on the "
                          "same signal with on-plane coefficients added (at K = N / 10^4 few coefficients reach the "
                          "image).")
-    reaching = {item.size: item.contributing_coefficients for item in result.measurements
-                if item.contributing_coefficients is not None}
     notes = ["## Notes", "",
              f"- The 'time' method evaluates its basis functions in blocks of about {config['time_block_values']} "
-             "values (coefficients x output points), so its memory is O(K + P) plus a constant block.",
-             "- Coefficients reaching the image (zero integrated coordinates) in the measured signal: "
-             + ", ".join(f"s={size}: {reaching.get(size, '-')}" for size in sizes) + "."]
+             "values (coefficients x output points), so its memory is O(K + P) plus a constant block."]
     notes += [f"- s={item.size} {item.method}: {item.status}: {item.reason}" for item in result.measurements if item.reason]
     return markdown_document(introduction, complexity_table(result, config), measurement_table(result, config, "time"),
-                             measurement_table(result, config, "memory"), "\n".join(ratio), "\n".join(agreement),
-                             "\n".join(notes))
+                             measurement_table(result, config, "memory"), reaching_table(result, config),
+                             "\n".join(ratio), "\n".join(agreement), "\n".join(notes))
 
 
 def measurements_table(measurements):
@@ -426,6 +513,7 @@ def measurements_table(measurements):
             optional(item.seconds, lambda value: f"{value:.6g}"), ";".join(f"{value:.6g}" for value in item.run_seconds),
             optional(item.peak_bytes), optional(item.baseline_bytes), optional(item.estimated_bytes),
             optional(item.peak_reset), optional(item.contributing_coefficients),
+            optional(item.uniform_contributing_coefficients), optional(item.image_max, lambda value: f"{value:.6g}"),
             optional(item.check_error, lambda value: f"{value:.3g}"), item.reason]))
     return Table(caption="Integration benchmark measurements", label_header=CSV_COLUMNS[0], columns=list(CSV_COLUMNS[1:]),
                  rows=rows)

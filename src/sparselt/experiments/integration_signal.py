@@ -6,13 +6,31 @@ Thesis section 4.3: a random sparse signal of size ``N = s^4`` with
 drawn by the package's one generator,
 :func:`~sparselt.fourier.sparse.random_sparse_fourier`, whose
 :func:`~sparselt.fourier.sparse.sample_support` draws the support without
-ever allocating an ``N``-sized array. This module also gives the signal the
-agreement check integrates: the measured signal plus coefficients on the kept
-plane, so that the check sees a non-trivial image.
+ever allocating an ``N``-sized array.
+
+Deviation from the thesis's uniform draw
+----------------------------------------
+Only a coefficient whose integrated coordinates are all zero reaches the
+image (thesis eq. 4.12; :func:`contributing_coefficients`). The integration
+plane holds ``P = s^2`` of the ``N = s^4`` frequencies, so a uniform draw puts
+``K P / N = 10^-4 s^2`` coefficients there on average: 0.1 at ``s = 32``,
+1.6 at ``s = 128``. Drawn uniformly, nearly every signal of the thesis's
+range integrates to an all-zero image, and the methods are timed computing
+zeros. :func:`thesis_signal` therefore raises the number on the plane to
+``min(minimum_reaching, K, P)`` (``MINIMUM_REACHING`` by default) when the
+uniform draw has fewer: it moves that many off-plane coefficients, chosen
+uniformly, to plane frequencies not yet in the support, chosen uniformly,
+keeping their values. ``N``, ``K`` and ``P``, which set every method's cost
+(Table 4.1), are unchanged, and so is the signal whenever the uniform draw
+already has enough on the plane; ``minimum_reaching=0`` gives the uniform
+draw itself.
+
+This module also gives the signal the agreement check integrates: the
+measured signal plus coefficients on the kept plane with complex values.
 
 References
 ----------
-Thesis chapter 4, section 4.3 (methodology).
+Thesis chapter 4, sections 4.2 (eq. 4.12) and 4.3 (methodology).
 """
 
 from __future__ import annotations
@@ -21,11 +39,14 @@ import math
 
 import numpy as np
 
+from ..checks import check_integer
 from ..fourier.sparse import SparseFourier, random_sparse_fourier
 
 DIMENSIONS = 4
 KEEP_AXES = (0, 1)
 THESIS_DENSITY = 1e-4
+#: Coefficients moved onto the integration plane where the uniform draw has fewer (at most K and P); see the notes.
+MINIMUM_REACHING = 4
 
 
 def coefficient_count(signal_size, density=THESIS_DENSITY):
@@ -46,8 +67,8 @@ def coefficient_count(signal_size, density=THESIS_DENSITY):
     return max(1, int(signal_size * density))
 
 
-def thesis_signal(size, *, density=THESIS_DENSITY, seed=0, dimensions=DIMENSIONS):
-    """The random sparse signal of thesis section 4.3.
+def thesis_signal(size, *, density=THESIS_DENSITY, seed=0, dimensions=DIMENSIONS, minimum_reaching=MINIMUM_REACHING):
+    """The random sparse signal of thesis section 4.3, with at least a few coefficients reaching the image.
 
     Parameters
     ----------
@@ -59,19 +80,76 @@ def thesis_signal(size, *, density=THESIS_DENSITY, seed=0, dimensions=DIMENSIONS
         Seed of the random stream.
     dimensions : int, optional
         Number of axes; ``N = size^dimensions``.
+    minimum_reaching : int, optional
+        At least ``min(minimum_reaching, K, P)`` coefficients lie on the
+        integration plane of ``P = s^2`` frequencies (integrated coordinates
+        zero), so that they reach the image; 0 keeps the thesis's uniform
+        draw as it is.
 
     Returns
     -------
     SparseFourier
         ``K = coefficient_count(N, density)`` coefficients, support uniformly
-        random without repetition, values uniform in ``[0, 1)`` (stored as
-        complex128). The random stream depends on ``(seed, size)`` only, so
-        every method at one size sees the same signal.
+        random without repetition, then raised onto the plane as the module
+        notes describe; values uniform in ``[0, 1)`` (stored as complex128).
+        The random stream depends on ``(seed, size)`` only, so every method
+        at one size sees the same signal.
+
+    Raises
+    ------
+    TypeError
+        ``minimum_reaching`` not an integer.
+    ValueError
+        ``minimum_reaching`` negative.
+
+    Notes
+    -----
+    The uniform draw is made first and is the same for every
+    ``minimum_reaching``; the extra draws (which coefficients move, and
+    where) follow it in the same stream. The result is uniform given its
+    number of on-plane coefficients: its on-plane coefficients are a uniform
+    subset of the plane, its others a uniform subset of the rest.
     """
+    minimum_reaching = check_integer("minimum_reaching", minimum_reaching, 0)
     shape = (int(size),) * int(dimensions)
     total = math.prod(shape)
     rng = np.random.default_rng([int(seed), int(size)])
-    return random_sparse_fourier(shape, coefficient_count(total, density), rng, values="uniform")
+    representation = random_sparse_fourier(shape, coefficient_count(total, density), rng, values="uniform")
+    plane = math.prod(shape[axis] for axis in KEEP_AXES)
+    return _raise_reaching(representation, min(minimum_reaching, representation.sparsity, plane), rng)
+
+
+def _integrated_axes(shape):
+    return tuple(axis for axis in range(len(shape)) if axis not in KEEP_AXES)
+
+
+def _on_plane(representation):
+    """Whether each coefficient has all its integrated coordinates zero."""
+    coordinates = np.unravel_index(representation.indices, representation.shape)
+    on_plane = np.ones(representation.sparsity, dtype=bool)
+    for axis in _integrated_axes(representation.shape):
+        on_plane &= coordinates[axis] == 0
+    return on_plane, coordinates
+
+
+def _raise_reaching(representation, target, rng):
+    """Move uniformly chosen off-plane coefficients to free plane frequencies until ``target`` lie on the plane."""
+    on_plane, coordinates = _on_plane(representation)
+    missing = target - int(on_plane.sum())
+    if missing <= 0:
+        return representation
+    shape = representation.shape
+    plane_shape = tuple(shape[axis] for axis in KEEP_AXES)
+    occupied = np.ravel_multi_index(tuple(coordinates[axis][on_plane] for axis in KEEP_AXES), plane_shape)
+    free = np.setdiff1d(np.arange(math.prod(plane_shape), dtype=np.int64), occupied)
+    targets = np.unravel_index(rng.choice(free, size=missing, replace=False), plane_shape)
+    moved = rng.choice(np.flatnonzero(~on_plane), size=missing, replace=False)
+    new_coordinates = [np.zeros(missing, dtype=np.int64) for _ in shape]
+    for axis, target_coordinate in zip(KEEP_AXES, targets):
+        new_coordinates[axis] = target_coordinate
+    indices = representation.indices.copy()
+    indices[moved] = np.ravel_multi_index(tuple(new_coordinates), shape)
+    return SparseFourier(shape, indices, representation.values)
 
 
 def contributing_coefficients(representation):
@@ -88,12 +166,7 @@ def contributing_coefficients(representation):
         Coefficients whose integrated coordinates are all zero (the only ones
         that reach the image).
     """
-    coordinates = np.unravel_index(representation.indices, representation.shape)
-    on_plane = np.ones(representation.sparsity, dtype=bool)
-    for axis in range(len(representation.shape)):
-        if axis not in KEEP_AXES:
-            on_plane &= coordinates[axis] == 0
-    return int(on_plane.sum())
+    return int(_on_plane(representation)[0].sum())
 
 
 def agreement_signal(representation, seed):

@@ -14,6 +14,15 @@ from ..images import reference_exposure, srgb_tonemap
 from .comparison_rows import matched_rows, mean_curve, methods_in_order
 from .plotting import pyplot
 
+#: Font sizes (points, at the figures' native 110 dpi): the page shows the figures across its content column.
+TITLE_FONT_SIZE = 11
+LABEL_FONT_SIZE = 10
+SUPTITLE_FONT_SIZE = 12
+#: A generous average glyph width of the default font, in em: what a title line is assumed to need.
+_GLYPH_WIDTH = 0.62
+#: Line height, in em, of multi-line titles (matplotlib's default line spacing is 1.2).
+_LINE_HEIGHT = 1.3
+
 
 def quality_figure(rows, scene, epsilon, summary=None, fit=None):
     """SSIM and relMSE against median seconds, one line per method, log time axis (thesis Figures 8.1/8.3).
@@ -77,7 +86,7 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
         axis.grid(True, which="both", alpha=0.3)
     handles, labels = right.get_legend_handles_labels()
     if handles:
-        figure.legend(handles, labels, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small")
+        figure.legend(handles, labels, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=LABEL_FONT_SIZE)
     figure.tight_layout()
     return figure
 
@@ -108,31 +117,116 @@ def matched_pictures(rows, reference, image_of):
     return matched, target, pictures
 
 
+def _seconds_text(seconds):
+    """Seconds for a title: two decimals from 0.1 s, else three significant digits (``0.00412``)."""
+    return f"{seconds:.2f}" if seconds >= 0.1 else f"{seconds:.3g}"
+
+
+def matched_time_text(matched, target):
+    """What the panels show, honestly: the target time and the range of the panels' own times.
+
+    Parameters
+    ----------
+    matched : list of dict
+        The rows shown (:func:`~sparselt.report.comparison_rows.matched_rows`).
+    target : float
+        The matched time (seconds): the largest of the methods' shortest runs.
+
+    Returns
+    -------
+    str
+        For example ``"each method at its run closest to 0.35 s (panels 0.06-19.22 s)"``.
+    """
+    seconds = [row["seconds_total"] for row in matched]
+    low, high = min(seconds), max(seconds)
+    panels = (f"panel {_seconds_text(low)} s" if _seconds_text(low) == _seconds_text(high)
+              else f"panels {_seconds_text(low)}-{_seconds_text(high)} s")
+    return f"each method at its run closest to {_seconds_text(target)} s ({panels})"
+
+
+def _text_width(lines, font_size):
+    """Inches a block of title lines needs at ``font_size`` points (a generous estimate)."""
+    return max(len(line) for line in lines) * _GLYPH_WIDTH * font_size / 72
+
+
+def _text_height(line_count, font_size):
+    """Inches ``line_count`` lines of ``font_size`` points take."""
+    return line_count * _LINE_HEIGHT * font_size / 72
+
+
+def _wrapped(text, width_inches, font_size):
+    """``text`` wrapped to lines that fit ``width_inches`` at ``font_size`` points."""
+    import textwrap
+
+    return textwrap.wrap(text, width=max(20, int(width_inches * 72 / (_GLYPH_WIDTH * font_size))))
+
+
+def _panel_grid(plot, columns, panel_width, image_height, title_lines, suptitle, *, left=0.1, gap_width=0.25):
+    """A figure of rows x ``columns`` image axes placed by hand, each row with room for its titles.
+
+    Row ``i`` is ``title_lines[i]`` lines of :data:`TITLE_FONT_SIZE` plus the
+    image, so a row's titles never reach into the images of the row above
+    (``tight_layout`` cannot promise that for images of fixed aspect). The
+    suptitle is wrapped to the figure's width above the first row.
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+    axes : ndarray of Axes, shape (len(title_lines), columns)
+    """
+    width = left + columns * panel_width + (columns - 1) * gap_width + 0.1
+    heading = _wrapped(suptitle, width - 0.2, SUPTITLE_FONT_SIZE)
+    heading_height = _text_height(len(heading), SUPTITLE_FONT_SIZE) + 0.15
+    title_heights = [_text_height(count, TITLE_FONT_SIZE) + 0.12 if count else 0.0 for count in title_lines]
+    gap_height = 0.15
+    height = heading_height + sum(title_heights) + len(title_lines) * (image_height + gap_height) + 0.1 - gap_height
+    figure = plot.figure(figsize=(width, height))
+    axes = np.empty((len(title_lines), columns), dtype=object)
+    top = heading_height
+    for line, title_height in enumerate(title_heights):
+        top += title_height
+        for column in range(columns):
+            axes[line, column] = figure.add_axes((
+                (left + column * (panel_width + gap_width)) / width, 1 - (top + image_height) / height,
+                panel_width / width, image_height / height))
+        top += image_height + gap_height
+    figure.text(0.5, 1 - 0.08 / height, "\n".join(heading), ha="center", va="top", fontsize=SUPTITLE_FONT_SIZE)
+    return figure, axes
+
+
 def image_grid_figure(matched, target, pictures):
     """The reference and every method at matched time with SSIM, relMSE and luminance ratio (thesis Figures 8.2/8.4).
 
     Parameters are :func:`matched_pictures`' results. Returns the figure.
+
+    Notes
+    -----
+    The heading states the target time and the range of the panels' own
+    times (:func:`matched_time_text`): a method whose runs are all slower
+    or faster than the target shows its nearest run, and its title says
+    which. Titles are :data:`TITLE_FONT_SIZE` points at the native 110 dpi,
+    each row with room for its three title lines.
     """
     plot = pyplot()
     panels = len(matched) + 1
     columns = min(5, panels)
     lines = -(-panels // columns)
-    figure, axes = plot.subplots(lines, columns, figsize=(3.3 * columns, 3.5 * lines + 0.4), squeeze=False)
+    titles = [["reference"]] + [
+        [row["method"], f"{row['spp']} spp, {_seconds_text(row['seconds_total'])} s, lum x{row['luminance_ratio']:.2f}",
+         f"SSIM {row['ssim']:.3f}, relMSE {row['relmse']:.3g}"] for row in matched]
+    panel_width = max(2.8, max(_text_width(title, TITLE_FONT_SIZE) for title in titles) + 0.1)
+    height, width = pictures[0].shape[:2]
+    figure, axes = _panel_grid(plot, columns, panel_width, panel_width * height / width,
+                               [max(len(title) for title in titles)] * lines, matched_time_text(matched, target))
     axes = axes.ravel()
-    axes[0].imshow(pictures[0])
-    axes[0].set_title("reference", fontsize=9)
-    for axis, row, picture in zip(axes[1:], matched, pictures[1:]):
-        axis.imshow(picture)
-        axis.set_title(f"{row['method']} {row['spp']} spp, {row['seconds_total']:.2f} s\n"
-                       f"SSIM {row['ssim']:.3f} relMSE {row['relmse']:.3g} lum x{row['luminance_ratio']:.2f}",
-                       fontsize=8)
+    for axis, title, picture in zip(axes, titles, pictures):
+        axis.imshow(picture, aspect="auto")
+        axis.set_title("\n".join(title), fontsize=TITLE_FONT_SIZE)
     for axis in axes:
         axis.set_xticks([])
         axis.set_yticks([])
     for axis in axes[panels:]:
         axis.set_visible(False)
-    figure.suptitle(f"matched time: about {target:.2f} s", fontsize=10)
-    figure.tight_layout(rect=(0, 0, 1, 0.96))
     return figure
 
 
@@ -169,26 +263,36 @@ def crop_grid_figure(matched, target, pictures):
     """Detail crops (rows) of the reference and every method at matched time (columns), where they differ most.
 
     Parameters are :func:`matched_pictures`' results. Returns the figure.
+
+    Notes
+    -----
+    Column titles are :data:`TITLE_FONT_SIZE` points and the crops' positions
+    (y labels) :data:`LABEL_FONT_SIZE` points at the native 110 dpi; the
+    heading states the target and the panels' times (:func:`matched_time_text`).
     """
     plot = pyplot()
     height, width = pictures[0].shape[:2]
     size = max(8, min(height, width) // 4)
     crops = disagreement_crops(pictures[1:], size)
     columns = len(matched) + 1
-    figure, axes = plot.subplots(len(crops), columns, figsize=(2.2 * columns, 2.3 * len(crops) + 0.4), squeeze=False)
-    titles = ["reference"] + [f"{row['method']}\n{row['spp']} spp, {row['seconds_total']:.2f} s" for row in matched]
+    titles = [["reference"]] + [[row["method"], f"{row['spp']} spp, {_seconds_text(row['seconds_total'])} s"]
+                                for row in matched]
+    panel_width = max(1.5, max(_text_width(title, TITLE_FONT_SIZE) for title in titles) + 0.08)
+    figure, axes = _panel_grid(
+        plot, columns, panel_width, panel_width, [max(len(title) for title in titles)] + [0] * (len(crops) - 1),
+        f"detail crops where the methods differ most; {matched_time_text(matched, target)}",
+        left=0.35, gap_width=0.12)
     for line, (top, left) in enumerate(crops):
         for column, picture in enumerate(pictures):
             axis = axes[line][column]
-            axis.imshow(picture[top:top + size, left:left + size], interpolation="nearest")
+            axis.imshow(picture[top:top + size, left:left + size], interpolation="nearest", aspect="auto")
             axis.set_xticks([])
             axis.set_yticks([])
             if line == 0:
-                axis.set_title(titles[column], fontsize=8)
-        axes[line][0].set_ylabel(f"x {left}, y {top}", fontsize=8)
-    figure.suptitle(f"detail crops where the methods differ most, matched time about {target:.2f} s", fontsize=9)
-    figure.tight_layout(rect=(0, 0, 1, 0.96))
+                axis.set_title("\n".join(titles[column]), fontsize=TITLE_FONT_SIZE)
+        axes[line][0].set_ylabel(f"x {left}, y {top}", fontsize=LABEL_FONT_SIZE)
     return figure
 
 
-__all__ = ["crop_grid_figure", "disagreement_crops", "image_grid_figure", "matched_pictures", "quality_figure"]
+__all__ = ["LABEL_FONT_SIZE", "SUPTITLE_FONT_SIZE", "TITLE_FONT_SIZE", "crop_grid_figure", "disagreement_crops",
+           "image_grid_figure", "matched_pictures", "matched_time_text", "quality_figure"]

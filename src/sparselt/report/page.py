@@ -3,7 +3,7 @@
 No external resources and no server: styles are inline, images are files next
 to the page referenced by relative paths. A table of contents at the top links
 every section (an ``<h2>`` with an ``id``) and, under it, every table's and
-figure's caption (each an anchor of its own). Figures span the content column;
+figure's caption (each an anchor of its own). Figures show at their own size, at most the content column;
 each image is a link to its file, so a click opens it at full size. A small
 inline script marks, on ``load``, how many images the page has and which
 failed to load (``body[data-images]``, ``body[data-broken-images]``), so a
@@ -26,8 +26,10 @@ body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; mar
 h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; margin-top: 2em; }
 p { max-width: 68em; }
 figure { display: block; margin: 1.5em 0; width: 100%; }
-figure a { display: block; } figure img { display: block; width: 100%; height: auto; border: 1px solid #ddd; }
+figure a { display: inline-block; max-width: 100%; }
+figure img { display: block; max-width: 100%; height: auto; border: 1px solid #ddd; }
 figcaption { font-size: .88em; color: #444; margin-top: .3em; }
+.finding { font-size: .9em; margin: .3em 0 0 0; color: #333; }
 nav.contents { background: #fafafa; border: 1px solid #ddd; padding: .5em 1.2em; margin: 1em 0 2em 0; font-size: .92em; }
 nav.contents p { margin: .3em 0; font-weight: bold; } nav.contents ul { margin: .2em 0; padding-left: 1.4em; }
 nav.contents ul ul { font-size: .92em; color: #444; }
@@ -52,6 +54,7 @@ class Figure:
 
     path: str
     caption: str
+    findings: list = field(default_factory=list)  # sentences under the caption: the thesis's finding, then ours
 
 
 @dataclass
@@ -96,13 +99,26 @@ def anchor_identifier(text, used):
         For example ``"chapter-4-fourier-integration"``; ``"-2"``, ``"-3"``,
         ... appended when taken.
     """
-    base = re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-")[:60].strip("-") or "part"
+    return _unique(re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-")[:60].strip("-") or "part", used)
+
+
+def _unique(base, used):
+    """``base``, or ``base-2``, ``base-3``, ... the first not in ``used``; added to ``used``."""
     identifier, number = base, 1
     while identifier in used:
         number += 1
         identifier = f"{base}-{number}"
     used.add(identifier)
     return identifier
+
+
+def _figure_html(figure, identifier):
+    """A figure across the content column; its image a link to the file (a click opens it at full size)."""
+    path, caption = _escape(figure.path), _escape(figure.caption)
+    return (f"<figure id=\"{_escape(identifier)}\"><a href=\"{path}\" title=\"open at full size\">"
+            f"<img src=\"{path}\" alt=\"{caption}\"></a><figcaption>{caption}</figcaption>"
+            + "".join(f"<p class=\"finding\">{_escape(finding)}</p>" for finding in figure.findings)
+            + "</figure>")
 
 
 def _contents(entries):
@@ -117,6 +133,12 @@ def _contents(entries):
 
 def page_html(folder, title, sections, provenance, *, note=""):
     """The report page as HTML text; every image and link path is relative to ``folder``, where the page goes.
+
+    The page opens with a table of contents: one link per section (its
+    ``<h2>``'s ``id``, :func:`anchor_identifier` of its title) and, nested
+    under it, one per table and figure caption (ids ``<section>-table-<n>``
+    and ``<section>-figure-<n>``), then the provenance. Each figure spans the
+    content column and its image links to its file.
 
     Parameters
     ----------
@@ -136,11 +158,6 @@ def page_html(folder, title, sections, provenance, *, note=""):
         absolute path or URL.
     """
     folder = os.path.abspath(os.fspath(folder))
-    parts = ["<!DOCTYPE html>", "<html lang=\"en\"><head><meta charset=\"utf-8\">",
-             f"<title>{_escape(title)}</title><style>{STYLE}</style></head><body>",
-             f"<h1>{_escape(title)}</h1>"]
-    if note:
-        parts.append(f"<p>{_escape(note)}</p>")
     used, contents, body = {"contents"}, [], []
     for section in sections:
         identifier = anchor_identifier(section.title, used)
@@ -151,33 +168,38 @@ def page_html(folder, title, sections, provenance, *, note=""):
         for verdict in section.verdicts:
             body.append(f"<p class=\"verdict\">{_escape(verdict)}</p>")
         for number, table in enumerate(section.tables, 1):
-            table_identifier = anchor_identifier(f"{identifier}-table-{number}", used)
+            table_identifier = _unique(f"{identifier}-table-{number}", used)
             entries.append((table_identifier, table.caption))
             body.append(table.html(identifier=table_identifier))
         for number, figure in enumerate(section.figures, 1):
             _check_relative(folder, figure.path)
-            figure_identifier = anchor_identifier(f"{identifier}-figure-{number}", used)
+            figure_identifier = _unique(f"{identifier}-figure-{number}", used)
             entries.append((figure_identifier, figure.caption))
-            path, caption = _escape(figure.path), _escape(figure.caption)
-            body.append(f"<figure id=\"{_escape(figure_identifier)}\"><a href=\"{path}\" title=\"open at full size\">"
-                        f"<img src=\"{path}\" alt=\"{caption}\"></a><figcaption>{caption}</figcaption></figure>")
-        contents.append((identifier, section.title, entries))
-        parts = parts + body
-        body = []
+            body.append(_figure_html(figure, figure_identifier))
         if section.links:
             items = []
             for text, target in section.links:
                 _check_relative(folder, target)
                 items.append(f"<li><a href=\"{_escape(target)}\">{_escape(text)}</a></li>")
-            parts.append("<ul>" + "".join(items) + "</ul>")
+            body.append("<ul>" + "".join(items) + "</ul>")
         if section.seconds is not None:
-            parts.append(f"<p class=\"provenance\">Wall time of this chapter: {section.seconds:.1f} s.</p>")
+            body.append(f"<p class=\"provenance\">Wall time of this chapter: {section.seconds:.1f} s.</p>")
+        contents.append((identifier, section.title, entries))
+    provenance_identifier = _unique("provenance", used)
+    contents.append((provenance_identifier, "Provenance", []))
     versions = ", ".join(f"{name} {version}" for name, version in (provenance.get("versions") or {}).items() if version)
     git = provenance.get("git") or {}
-    parts.append("<h2>Provenance</h2><p class=\"provenance\">"
-                 f"git {_escape(git.get('commit', 'unknown'))}{' (modified)' if git.get('dirty') else ''}; "
-                 f"{_escape(provenance.get('platform', ''))}; created {_escape(provenance.get('created', ''))}; "
-                 f"command <code>{_escape(' '.join(provenance.get('command') or []))}</code>; {_escape(versions)}.</p>")
+    body.append(f"<h2 id=\"{provenance_identifier}\">Provenance</h2><p class=\"provenance\">"
+                f"git {_escape(git.get('commit', 'unknown'))}{' (modified)' if git.get('dirty') else ''}; "
+                f"{_escape(provenance.get('platform', ''))}; created {_escape(provenance.get('created', ''))}; "
+                f"command <code>{_escape(' '.join(provenance.get('command') or []))}</code>; {_escape(versions)}.</p>")
+    parts = ["<!DOCTYPE html>", "<html lang=\"en\"><head><meta charset=\"utf-8\">",
+             f"<title>{_escape(title)}</title><style>{STYLE}</style></head><body>",
+             f"<h1>{_escape(title)}</h1>"]
+    if note:
+        parts.append(f"<p>{_escape(note)}</p>")
+    parts.append(_contents(contents))
+    parts += body
     parts.append(f"<script>{SELF_CHECK}</script></body></html>")
     return "\n".join(parts) + "\n"
 

@@ -36,7 +36,7 @@ p.table-note { font-size: .88em; color: #444; margin: -.6em 0 1em 0; }
 """
 
 
-#: A number printed with a decimal comma (``"0,6042"``, ``"-12,5"``): one comma, digits on both sides.
+#: A number printed with a decimal comma (``"0,25"``, ``"-12,5"``): one comma, digits on both sides.
 _DECIMAL_COMMA = re.compile(r"[+-]?\d+,\d+")
 #: A number printed with comma thousands separators (``"71,722"``, ``"553,647,600"``): never a decimal comma.
 _THOUSANDS = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+")
@@ -104,8 +104,8 @@ def thesis_display_text(text):
     Returns
     -------
     str
-        ``text`` with a decimal comma made a decimal point (``"0,6042"`` ->
-        ``"0.6042"``) and LaTeX mathematics made plain text (``"$O(N \log(N))$"``
+        ``text`` with a decimal comma made a decimal point (``"0,25"`` ->
+        ``"0.25"``) and LaTeX mathematics made plain text (``"$O(N \log(N))$"``
         -> ``"O(N log N)"``, ``"$O(K + P)$"`` -> ``"O(K + P)"``, ``"$N^{2}$"``
         -> ``"N²"``); any other text unchanged.
 
