@@ -5,8 +5,9 @@
 ``quick``
     Minutes on 2 cores: small grids and few samples; directions mostly hold, levels do not.
 ``medium``
-    The thesis's 4-D sizes (250x250x16x16) for chapters 7 and 8, 10-D path spaces at about a tenth of the
-    thesis's cells; 1-2 hours on 2 cores.
+    The thesis's 4-D size (250x250x16x16) for chapter 7, 128x128x8x8 for chapter 8's nine methods at the
+    thesis's first three budgets, 10-D path spaces of 1.6e7-6.7e7 cells (the thesis: 6.6e8); about 1.5 hours
+    on 2 cores.
 ``thesis``
     The thesis's sizes throughout: about a day on 2 cores (the 10-D signals dominate).
 
@@ -95,7 +96,7 @@ class ReproduceScale:
         grid = "x".join
         text = {
             "4": f"signal sides s = {', '.join(map(str, self.integration_sizes))} (N = s^4), "
-                 f"{self.integration_repeats} repeats",
+                 f"{self.integration_repeats} repeat{'s' if self.integration_repeats != 1 else ''}",
             "5": f"path space {grid(map(str, self.path_shape))} at {self.path_spp} spp; renders "
                  f"{grid(map(str, self.render_resolution))} at {self.render_spp} spp",
             "6": f"SFT grid {grid(map(str, self.table61_shape))}, alphas {', '.join(f'{a:g}' for a in self.table61_alphas)}; "
@@ -103,7 +104,8 @@ class ReproduceScale:
                  f"{', '.join(map(str, self.maps_spps))} spp",
             "7": f"{grid(map(str, self.dof_shape))} at {self.dof_spp} spp",
             "8": f"{grid(map(str, self.compare_shape))}, {', '.join(map(str, self.compare_spps))} spp, seeds "
-                 f"{', '.join(map(str, self.compare_seeds))}, {self.compare_repeats} timing repeats, reference "
+                 f"{', '.join(map(str, self.compare_seeds))}, {self.compare_repeats} timing repeat"
+                 f"{'s' if self.compare_repeats != 1 else ''}, reference "
                  f"{self.compare_reference_spp} spp",
         }
         return text[str(chapter)]
@@ -122,18 +124,19 @@ SCALES = {
         name="quick", integration_sizes=(32, 48, 64), integration_repeats=2,
         path_shape=(16, 16) + (2,) * 8, path_spp=4, render_resolution=(128, 128), render_spp=64,
         dof_shape=(64, 64, 8, 8), dof_spp=4,
-        table61_shape=(16, 16) + (4,) * 8, table61_alphas=(4.0, 16.0, 32.0), table61_reference_spp=256,
-        maps_shape=(16, 16) + (4,) * 8, maps_resolution=(64, 64), maps_spps=(16, 64), maps_reference_spp=1024,
-        compare_shape=(64, 64, 8, 8), compare_spps=(16, 40), compare_reference_spp=256,
-        minutes={"4": 0.3, "5": 0.5, "6": 2.0, "7": 0.5, "8": 4.0}),
+        table61_shape=(16, 16) + (4,) * 4 + (2,) * 4, table61_alphas=(4.0, 16.0, 32.0), table61_reference_spp=256,
+        maps_shape=(16, 16) + (2,) * 8, maps_resolution=(64, 64), maps_spps=(16, 64), maps_reference_spp=1024,
+        compare_shape=(64, 64, 8, 8), compare_spps=(16, 40), compare_reference_spp=256, compare_seeds=(1, 2),
+        compare_repeats=2, compare_ladder_max_spp=2048, minutes={"4": 0.3, "5": 0.2, "6": 1.5, "7": 0.4, "8": 5.0}),
     "medium": ReproduceScale(
         name="medium", integration_sizes=(32, 48, 64, 96), integration_repeats=3,
         path_shape=(50, 50) + (3,) * 8, path_spp=8, render_resolution=(256, 256), render_spp=256,
         dof_shape=(250, 250, 16, 16), dof_spp=16,
         table61_shape=(32, 32) + (4,) * 8, table61_alphas=(4.0, 16.0, 32.0), table61_reference_spp=1024,
-        maps_shape=(16, 16) + (4,) * 8, maps_resolution=(250, 250), maps_spps=(64, _thesis_spps("6.2")[1]), maps_reference_spp=4096,
-        compare_shape=(250, 250, 16, 16), compare_spps=_thesis_spps("8.1")[:3], compare_reference_spp=2048,
-        compare_repeats=2, minutes={"4": 1.0, "5": 8.0, "6": 20.0, "7": 10.0, "8": 45.0}),
+        maps_shape=(16, 16) + (3,) * 8, maps_resolution=(128, 128), maps_spps=(64, _thesis_spps("6.2")[1]),
+        maps_reference_spp=4096, compare_shape=(128, 128, 8, 8), compare_spps=_thesis_spps("8.1")[:3],
+        compare_reference_spp=2048, compare_repeats=2,
+        minutes={"4": 1.0, "5": 8.0, "6": 20.0, "7": 13.0, "8": 50.0}),
     "thesis": ReproduceScale(
         name="thesis", integration_sizes=(32, 48, 64, 96, 128), integration_repeats=5,
         path_shape=(100, 100) + (4,) * 8, path_spp=64, render_resolution=(512, 512), render_spp=1024,
