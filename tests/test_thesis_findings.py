@@ -51,9 +51,10 @@ def test_the_verdict_agrees_with_agreeing_numbers_and_not_with_disagreeing_ones(
         thesis = thesis_quantity(claim["quantity"])
         agreeing = [value * 1.001 for value in thesis]
     same = judge(claim, agreeing, subject="a test")
-    assert same.agrees is True and "the same direction" in same.our_sentence and "a test" in same.our_sentence
+    noun = "direction" if claim["type"] == "trend" else "finding"
+    assert same.agrees is True and f"the same {noun}" in same.our_sentence and "a test" in same.our_sentence
     other = judge(claim, _opposite(claim, agreeing))
-    assert other.agrees is False and "OPPOSITE" in other.our_sentence
+    assert other.agrees is False and f"the OPPOSITE {noun}" in other.our_sentence
     assert "Thesis" in other.thesis_sentence and claim["statement"] in other.thesis_sentence
 
 

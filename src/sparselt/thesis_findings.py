@@ -266,7 +266,8 @@ def judge(claim, ours, *, thesis=None, subject=""):
         return Finding(claim, None, thesis_holds, thesis_sentence, f"Ours{where}: not measured.")
     ours = (_as_list(ours[0]), _as_list(ours[1])) if claim["type"] == "greater" else _as_list(ours)
     agrees = _holds(claim, ours)
-    word = {True: "the same direction", False: "the OPPOSITE direction", None: "too few values to tell"}[agrees]
+    noun = "direction" if claim["type"] == "trend" else "finding"
+    word = {True: f"the same {noun}", False: f"the OPPOSITE {noun}", None: "too few values to tell"}[agrees]
     our_sentence = f"Ours{where}: {word} ({_evidence(claim, ours)}{along}){_gap(claim, ours, thesis)}."
     return Finding(claim, agrees, thesis_holds, thesis_sentence, our_sentence)
 

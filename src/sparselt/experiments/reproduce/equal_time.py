@@ -64,6 +64,8 @@ def _scene_section(run, scene, plugin_methods):
     section = comparison_section(run.sub(name), run.page_path(name), result.rows, config, scene,
                                  methods=result.methods, summary=result.summary)
     section.verdicts = [f"{scene}: {verdict}" for verdict in section.verdicts]
+    # The per-method table keeps our columns only: the thesis's times stand in Table 8.1/8.2 below, per spp.
+    section.tables = [_ours_only(table) for table in section.tables]
     procedure = "cosamp-thesis"
     groups = {spp: [row for row in result.rows if row["method"] == procedure and row["spp"] == spp]
               for spp in config.spps}
@@ -83,6 +85,18 @@ def _scene_section(run, scene, plugin_methods):
                                                               f"{', '.join(map(str, spps))} spp").sentence)
     section.figures = _group_figures(run, name, scene, result)
     return section
+
+
+def _ours_only(table):
+    """``table`` without its thesis columns (and 'layout' dropped from its caption)."""
+    keep = [index for index, kind in enumerate(table.kinds) if kind != "thesis"]
+    if len(keep) == len(table.kinds):
+        return table
+    return Table(caption=table.caption.split(": ", 1)[-1][:1].upper() + table.caption.split(": ", 1)[-1][1:],
+                 columns=[table.columns[index] for index in keep], kinds=[table.kinds[index] for index in keep],
+                 rows=[(label, [cells[index] for index in keep]) for label, cells in table.rows],
+                 notes=[note for note in table.notes if not note.startswith("Thesis:")],
+                 label_header=table.label_header)
 
 
 def _table_8(number, thesis_scene, scene, config, means):
