@@ -322,10 +322,11 @@ def _figure(folder, rows, exposure):
                                 f"relMSE {row['sft']['relmse']:.3g}"),
                 (f"pt_equal_samples_{name}", f"PT, same samples ({row['pt_equal_samples_spp']} spp): "
                                              f"relMSE {row['pt_equal_samples']['relmse']:.3g}")]
-    figure, axes = pyplot().subplots(1, 3, figsize=(12, 4.4))
+    figure, axes = pyplot().subplots(1, 3, figsize=(13, 4.8))
     for axis, (file, title) in zip(axes, pictures):
         axis.imshow(srgb_tonemap(np.load(folder.path_of(f"{IMAGES}/{file}.npy")), exposure))
-        axis.set_title(title, fontsize=9)
+        axis.set_title(title.replace(": ", ":
+", 1), fontsize=11)
         axis.axis("off")
     figure.tight_layout()
     folder.write_figure("figure_6_1.png", figure, dpi=110)
