@@ -5,9 +5,9 @@
 ``quick``
     Minutes on 2 cores: small grids and few samples; directions mostly hold, levels do not.
 ``medium``
-    The thesis's 4-D size (250x250x16x16) for chapter 7, 128x128x8x8 for chapter 8's nine methods at the
-    thesis's first three budgets, 10-D path spaces of 1.6e7-6.7e7 cells (the thesis: 6.6e8); about 1.5 hours
-    on 2 cores.
+    The thesis's 4-D size (250x250x16x16) for chapter 7, 96x96x8x8 for chapter 8's nine methods at the
+    thesis's first three budgets, 10-D path spaces of 1.6e7 and 4.1e7 cells (the thesis: 6.6e8); about 1.3
+    hours on 2 cores.
 ``thesis``
     The thesis's sizes throughout: about a day on 2 cores (the 10-D signals dominate).
 
@@ -132,11 +132,11 @@ SCALES = {
         name="medium", integration_sizes=(32, 48, 64, 96), integration_repeats=3,
         path_shape=(50, 50) + (3,) * 8, path_spp=8, render_resolution=(256, 256), render_spp=256,
         dof_shape=(250, 250, 16, 16), dof_spp=16,
-        table61_shape=(32, 32) + (4,) * 8, table61_alphas=(4.0, 16.0, 32.0), table61_reference_spp=1024,
+        table61_shape=(25, 25) + (4,) * 8, table61_alphas=(4.0, 16.0, 32.0), table61_reference_spp=1024,
         maps_shape=(16, 16) + (3,) * 8, maps_resolution=(128, 128), maps_spps=(64, _thesis_spps("6.2")[1]),
-        maps_reference_spp=4096, compare_shape=(128, 128, 8, 8), compare_spps=_thesis_spps("8.1")[:3],
+        maps_reference_spp=4096, compare_shape=(96, 96, 8, 8), compare_spps=_thesis_spps("8.1")[:3],
         compare_reference_spp=2048, compare_repeats=2,
-        minutes={"4": 1.0, "5": 8.0, "6": 20.0, "7": 13.0, "8": 50.0}),
+        minutes={"4": 1.0, "5": 12.0, "6": 12.0, "7": 25.0, "8": 25.0}),
     "thesis": ReproduceScale(
         name="thesis", integration_sizes=(32, 48, 64, 96, 128), integration_repeats=5,
         path_shape=(100, 100) + (4,) * 8, path_spp=64, render_resolution=(512, 512), render_spp=1024,
