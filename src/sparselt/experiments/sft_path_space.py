@@ -325,8 +325,7 @@ def _figure(folder, rows, exposure):
     figure, axes = pyplot().subplots(1, 3, figsize=(13, 4.8))
     for axis, (file, title) in zip(axes, pictures):
         axis.imshow(srgb_tonemap(np.load(folder.path_of(f"{IMAGES}/{file}.npy")), exposure))
-        axis.set_title(title.replace(": ", ":
-", 1), fontsize=11)
+        axis.set_title(title.replace(": ", ":\n", 1), fontsize=11)
         axis.axis("off")
     figure.tight_layout()
     folder.write_figure("figure_6_1.png", figure, dpi=110)
