@@ -6,13 +6,14 @@
     Minutes on 2 cores: small grids and few samples; directions mostly hold, levels do not.
 ``medium``
     The thesis's 4-D size (250x250x16x16) for chapter 7, 96x96x8x8 for chapter 8's nine methods at the
-    thesis's first three budgets, 10-D path spaces of 1.6e7 and 4.1e7 cells (the thesis: 6.6e8); about 1.3
-    hours on 2 cores.
+    thesis's first three budgets, 10-D path spaces of 1.6e7 and 4.1e7 cells (the thesis: 6.6e8); 72 minutes
+    on 2 cores (measured).
 ``thesis``
     The thesis's sizes throughout: about a day on 2 cores (the 10-D signals dominate).
 
 Every size a chapter runner uses comes from here, so the page can state them and a scale's identity is its
-name. Expected minutes are from runs on this project's 2-core machines (``THESIS`` extrapolated from rates).
+name. Expected minutes are from runs on this project's 2-core machines (quick: 5 min 9 s, medium: 72 min,
+measured 2026-12-03; thesis extrapolated from rates).
 """
 
 from __future__ import annotations
@@ -136,7 +137,7 @@ SCALES = {
         maps_shape=(16, 16) + (3,) * 8, maps_resolution=(128, 128), maps_spps=(64, _thesis_spps("6.2")[1]),
         maps_reference_spp=4096, compare_shape=(96, 96, 8, 8), compare_spps=_thesis_spps("8.1")[:3],
         compare_reference_spp=2048, compare_repeats=2,
-        minutes={"4": 1.0, "5": 12.0, "6": 12.0, "7": 25.0, "8": 25.0}),
+        minutes={"4": 1.0, "5": 12.0, "6": 19.0, "7": 26.0, "8": 13.0}),
     "thesis": ReproduceScale(
         name="thesis", integration_sizes=(32, 48, 64, 96, 128), integration_repeats=5,
         path_shape=(100, 100) + (4,) * 8, path_spp=64, render_resolution=(512, 512), render_spp=1024,
