@@ -137,12 +137,12 @@ def test_case_7_reproduce_refuses_another_scale_in_the_same_folder(tmp_path):
 
 
 def test_case_7_a_signal_of_another_configuration_is_not_reused(tmp_path):
-    from sparselt.experiments.reproduce import _sampled
+    from sparselt.experiments.reproduce.common import sampled_signal
 
-    small = _sampled("cornell-box", "dof", (12, 12, 2, 2), 1, str(tmp_path), "signal", False, aperture=0.1)
-    again = _sampled("cornell-box", "dof", (12, 12, 2, 2), 1, str(tmp_path), "signal", False, aperture=0.1)
+    small = sampled_signal("cornell-box", "dof", (12, 12, 2, 2), 1, str(tmp_path), "signal", False, aperture=0.1)
+    again = sampled_signal("cornell-box", "dof", (12, 12, 2, 2), 1, str(tmp_path), "signal", False, aperture=0.1)
     assert again.meta["provenance"]["created"] == small.meta["provenance"]["created"]
-    larger = _sampled("cornell-box", "dof", (16, 16, 2, 2), 1, str(tmp_path), "signal", False, aperture=0.1)
+    larger = sampled_signal("cornell-box", "dof", (16, 16, 2, 2), 1, str(tmp_path), "signal", False, aperture=0.1)
     assert larger.shape == (16, 16, 2, 2)
 
 

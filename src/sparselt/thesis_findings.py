@@ -222,8 +222,13 @@ def _gap(claim, ours, thesis):
     return f"; our mean {_number(_mean(ours))} against the thesis's {_number(_mean(thesis))}"
 
 
-def _values(claim, source):
-    """A claim's values from ``source(quantity)``: a list, or a (larger, smaller) pair for 'greater'."""
+def claim_values(claim, source):
+    """A claim's values from ``source(quantity)``: a list, or a (larger, smaller) pair for 'greater'.
+
+    The one place that knows which quantities a claim type names: :func:`judge` reads the thesis's values
+    through it, and callers their own (``source`` returns our values of one quantity). None when ``source``
+    has none of a quantity.
+    """
     if claim["type"] == "greater":
         larger, smaller = _as_list(source(claim["larger"])), _as_list(source(claim["smaller"]))
         return None if larger is None or smaller is None else (larger, smaller)
@@ -254,7 +259,7 @@ def judge(claim, ours, *, thesis=None, subject=""):
     if claim["type"] not in CLAIM_TYPES:
         raise ValueError(f"claim {claim.get('id')!r} has type {claim['type']!r}; types: {', '.join(CLAIM_TYPES)}")
     if thesis is None:
-        thesis = _values(claim, thesis_quantity)
+        thesis = claim_values(claim, thesis_quantity)
     thesis_holds = _holds(claim, thesis) if thesis is not None else None
     along = f" {claim['along']}" if claim.get("along") else ""
     thesis_sentence = f"Thesis ({claim.get('section', '')}): {claim['statement']}" + (
@@ -272,5 +277,5 @@ def judge(claim, ours, *, thesis=None, subject=""):
     return Finding(claim, agrees, thesis_holds, thesis_sentence, our_sentence)
 
 
-__all__ = ["CLAIM_TYPES", "Finding", "figure_finding", "judge", "per_thesis_row", "quantity_name", "table_claim", "table_claims",
+__all__ = ["CLAIM_TYPES", "Finding", "claim_values", "figure_finding", "judge", "per_thesis_row", "quantity_name", "table_claim", "table_claims",
            "thesis_findings", "thesis_quantity"]

@@ -113,7 +113,7 @@ def _unique(base, used):
 
 
 def _figure_html(figure, identifier):
-    """A figure across the content column; its image a link to the file (a click opens it at full size)."""
+    """A figure at its own size (at most the content column); its image a link to the file (opens at full size)."""
     path, caption = _escape(figure.path), _escape(figure.caption)
     return (f"<figure id=\"{_escape(identifier)}\"><a href=\"{path}\" title=\"open at full size\">"
             f"<img src=\"{path}\" alt=\"{caption}\"></a><figcaption>{caption}</figcaption>"
@@ -137,8 +137,8 @@ def page_html(folder, title, sections, provenance, *, note=""):
     The page opens with a table of contents: one link per section (its
     ``<h2>``'s ``id``, :func:`anchor_identifier` of its title) and, nested
     under it, one per table and figure caption (ids ``<section>-table-<n>``
-    and ``<section>-figure-<n>``), then the provenance. Each figure spans the
-    content column and its image links to its file.
+    and ``<section>-figure-<n>``), then the provenance. Each figure shows at
+    its own size, at most the content column, and its image links to its file.
 
     Parameters
     ----------

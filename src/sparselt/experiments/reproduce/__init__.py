@@ -24,7 +24,7 @@ from ...measurement import progress_bar
 from ...provenance import environment_record
 from ...report import Section, page_html
 from ...storage.folder import ExperimentFolder
-from .common import ChapterRun, sampled_signal
+from .common import ChapterRun
 from .equal_time import CHAPTER_8_METHODS, chapter_8
 from .integration import chapter_4, table_4_1
 from .scales import SCALES, get_scale
@@ -32,7 +32,6 @@ from .sft import chapter_6
 from .sparsity import chapter_5, chapter_7
 
 CHAPTERS = ("4", "5", "6", "7", "8", "all")
-_sampled = sampled_signal  # the name earlier tests and scripts use
 
 
 def _check(chapter, scale):

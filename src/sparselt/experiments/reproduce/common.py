@@ -6,7 +6,7 @@ import os
 from dataclasses import dataclass
 
 from ...report import Figure
-from ...thesis_findings import figure_finding
+from ...thesis_findings import figure_finding, judge
 
 
 @dataclass
@@ -72,8 +72,6 @@ def thesis_figure(path, numbers, ours="", findings=()):
 
 def figure_claim(number, ours, subject=""):
     """Our sentence on the claim thesis Figure ``number`` makes (empty when it makes none)."""
-    from ...thesis_findings import judge
-
     claim = figure_finding(number).get("claim")
     if claim is None:
         return ""

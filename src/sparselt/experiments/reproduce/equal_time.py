@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...report import Section, Table
-from ...thesis_findings import judge, table_claims
+from ...thesis_findings import claim_values, figure_finding, judge, table_claims, thesis_findings
 from ...thesis_numbers import thesis_table
 from .common import grid_text, thesis_figure
 
@@ -20,12 +20,13 @@ SCENES = {"dof-sculptures": ("8.1", "Dragons", 0.25, {}),
 GROUP_FAMILIES = {"reconstruction": ("ablation", "cosamp"), "filters": ("filter", "denoiser"), "guided": ("guided",),
                   "guided-bilateral": None}
 LAYOUTS = ("quality", "images", "crops")
+#: Tables 8.1/8.2's phases, as printed, and the result column holding ours.
+PHASE_COLUMNS = {"Total": "seconds_total", "Sampling": "seconds_sampling", "CoSaMP": "seconds_reconstruction",
+                 "Integration": "seconds_integration"}
 
 
 def thesis_figures_of(thesis_scene):
     """``{group: {layout: [figure numbers]}}`` of the thesis's chapter-8 figures of ``thesis_scene``."""
-    from ...thesis_findings import thesis_findings
-
     groups = {}
     for number, record in thesis_findings()["figures"].items():
         place = record.get("comparison")
@@ -69,18 +70,12 @@ def _scene_section(run, scene, plugin_methods):
     procedure = "cosamp-thesis"
     groups = {spp: [row for row in result.rows if row["method"] == procedure and row["spp"] == spp]
               for spp in config.spps}
-    means = {spp: {key: float(np.mean([row[key] for row in group])) for key in
-                   ("seconds_total", "seconds_sampling", "seconds_reconstruction", "seconds_integration")}
+    means = {spp: {key: float(np.mean([row[key] for row in group])) for key in PHASE_COLUMNS.values()}
              for spp, group in groups.items() if group}
     section.tables.insert(0, _table_8(number, thesis_scene, scene, config, means))
     spps = sorted(means)
     for claim in table_claims(number):
-        key = {"Total": "seconds_total", "Sampling": "seconds_sampling", "CoSaMP": "seconds_reconstruction"}
-        if claim["type"] == "greater":
-            ours = ([means[spp][key[claim["larger"]["column"]]] for spp in spps],
-                    [means[spp][key[claim["smaller"]["column"]]] for spp in spps])
-        else:
-            ours = [means[spp][key[claim["quantity"]["column"]]] for spp in spps]
+        ours = claim_values(claim, lambda quantity: [means[spp][PHASE_COLUMNS[quantity["column"]]] for spp in spps])
         section.verdicts.insert(0, judge(claim, ours, subject=f"{scene} {procedure}, "
                                                               f"{', '.join(map(str, spps))} spp").sentence)
     section.figures = _group_figures(run, name, scene, result)
@@ -101,20 +96,18 @@ def _ours_only(table):
 
 def _table_8(number, thesis_scene, scene, config, means):
     """Table 8.1/8.2: one row per spp (the thesis's and ours), the thesis's times beside our thesis procedure's."""
-    from ...thesis_numbers import thesis_rows
+    from ...report.comparison import THESIS_TABLES, THESIS_TIMES
 
-    phases = ("Total", "Sampling", "CoSaMP", "Integration")
-    keys = ("seconds_total", "seconds_sampling", "seconds_reconstruction", "seconds_integration")
-    thesis = {int(label): values for label, values in thesis_rows(number, phases)}
+    thesis = THESIS_TABLES[scene][2]  # {spp: the thesis's times of THESIS_TIMES}
     rows = []
     for spp in sorted(set(thesis) | set(means)):
         cells = []
-        for index, key in enumerate(keys):
+        for index, phase in enumerate(THESIS_TIMES):
             cells += [f"{thesis[spp][index]:g}" if spp in thesis else "-",
-                      f"{means[spp][key]:.3f}" if spp in means else "-"]
+                      f"{means[spp][PHASE_COLUMNS[phase]]:.3f}" if spp in means else "-"]
         rows.append((str(spp), cells))
     columns = []
-    for phase in phases:
+    for phase in THESIS_TIMES:
         columns += [f"thesis {phase}", "ours" if phase != "CoSaMP" else "ours: reconstruction"]
     return Table(caption=f"Table {number}: {thesis_table(number)['caption']} (ours: {scene} = {thesis_scene}, "
                          f"cosamp-thesis, {grid_text(config.shape)}, mean over seeds, median of repeats)",
@@ -126,7 +119,6 @@ def _group_figures(run, name, scene, result):
     """The thesis's figures of ``scene``: per group of methods (with PT), quality against time, the images at
     matched time and detail crops, written into the chapter folder."""
     from ...report.comparison_figures import crop_grid_figure, image_grid_figure, matched_pictures, quality_figure
-    from ...thesis_findings import figure_finding
     from ..compare import IMAGES, RELMSE_EPSILON, cell_name
 
     folder = run.sub(name)

@@ -20,15 +20,11 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
-from ...thesis_numbers import thesis_rows
+from ...report.comparison import THESIS_GUIDING_TABLES, THESIS_TABLES
 
-
-def _thesis_spps(table):
-    """The spp of a thesis table's rows (Tables 6.2 and 8.1), read from :mod:`sparselt.thesis_numbers`."""
-    column = "Samples per Pixel" if table.startswith("6") else "Total"
-    if table.startswith("6"):
-        return tuple(values[0] for _, values in thesis_rows(table, (column,)))
-    return tuple(int(label) for label, _ in thesis_rows(table, (column,)))
+#: The thesis's budgets: Table 6.2's spp per image size, Table 8.1's spp (both from :mod:`sparselt.thesis_numbers`).
+THESIS_MAP_SPPS = tuple(values[0] for values in THESIS_GUIDING_TABLES["cornell-box"][2].values())
+THESIS_COMPARE_SPPS = tuple(THESIS_TABLES["dof-sculptures"][2])
 
 
 @dataclass(frozen=True)
@@ -134,8 +130,8 @@ SCALES = {
         path_shape=(50, 50) + (3,) * 8, path_spp=8, render_resolution=(256, 256), render_spp=256,
         dof_shape=(250, 250, 16, 16), dof_spp=16,
         table61_shape=(25, 25) + (4,) * 8, table61_alphas=(4.0, 16.0, 32.0), table61_reference_spp=1024,
-        maps_shape=(16, 16) + (3,) * 8, maps_resolution=(128, 128), maps_spps=(64, _thesis_spps("6.2")[1]),
-        maps_reference_spp=4096, compare_shape=(96, 96, 8, 8), compare_spps=_thesis_spps("8.1")[:3],
+        maps_shape=(16, 16) + (3,) * 8, maps_resolution=(128, 128), maps_spps=(64, THESIS_MAP_SPPS[1]),
+        maps_reference_spp=4096, compare_shape=(96, 96, 8, 8), compare_spps=THESIS_COMPARE_SPPS[:3],
         compare_reference_spp=2048, compare_repeats=2,
         minutes={"4": 1.0, "5": 12.0, "6": 19.0, "7": 26.0, "8": 13.0}),
     "thesis": ReproduceScale(
@@ -143,8 +139,8 @@ SCALES = {
         path_shape=(100, 100) + (4,) * 8, path_spp=64, render_resolution=(512, 512), render_spp=1024,
         dof_shape=(250, 250, 16, 16), dof_spp=64,
         table61_shape=(100, 100) + (4,) * 8, table61_alphas=(4.0, 16.0, 32.0), table61_reference_spp=4096,
-        maps_shape=(100, 100) + (4,) * 8, maps_resolution=(1000, 1000), maps_spps=_thesis_spps("6.2")[:1], maps_reference_spp=16384,
-        compare_shape=(250, 250, 16, 16), compare_spps=_thesis_spps("8.1"), compare_reference_spp=4096,
+        maps_shape=(100, 100) + (4,) * 8, maps_resolution=(1000, 1000), maps_spps=THESIS_MAP_SPPS[:1], maps_reference_spp=16384,
+        compare_shape=(250, 250, 16, 16), compare_spps=THESIS_COMPARE_SPPS, compare_reference_spp=4096,
         minutes={"4": 2.5, "5": 1200.0, "6": 180.0, "7": 60.0, "8": 120.0}),
 }
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...report import Section, Table
-from ...thesis_findings import judge, per_thesis_row, table_claims
+from ...thesis_findings import claim_values, judge, per_thesis_row, table_claims
 from ...thesis_numbers import thesis_table, thesis_value
 from ..sparsity_analysis import DEFAULT_FRACTIONS, analyze_signal, gini_table
 from .common import figure_claim, grid_text, sampled_signal, thesis_figure
@@ -67,10 +67,10 @@ def chapter_5(run):
             gini[thesis_scene] = gini_table(signal, (1.0,))
     figures.append(_figure_5_4(run, ssim))
 
-    def ours(label, column):
-        scene, channel = label
-        domain = "fourier" if column.startswith("5.1") else "canonical"
-        return _value(gini[scene], 1.0, domain, column.endswith("Energy"), channel)
+    def ours(quantity):
+        domain = "fourier" if quantity["table"] == "5.1" else "canonical"
+        energy = quantity["column"] == "Gini Energy"
+        return per_thesis_row(quantity, lambda label: _value(gini[label[0]], 1.0, domain, energy, label[1]))
 
     tables, verdicts = [], []
     for number, domain, basis in (("5.1", "fourier", "Fourier"), ("5.2", "canonical", "primary sample space")):
@@ -87,18 +87,11 @@ def chapter_5(run):
                             columns=["thesis Gini", "ours", "thesis Gini energy", "ours"],
                             kinds=["thesis", "ours", "thesis", "ours"], rows=rows))
         for claim in table_claims(number):
-            verdicts.append(judge(claim, _claim_values(claim, lambda quantity: per_thesis_row(
-                quantity, lambda label: ours(label, f"{quantity['table']} {quantity['column']}")))).sentence)
+            verdicts.append(judge(claim, claim_values(claim, ours)).sentence)
     return Section(title="Chapter 5: sparsity of path space", tables=tables, verdicts=verdicts, figures=figures,
                    introduction="Gini index (eq. 5.1) of the path-space signals, per channel, of magnitudes and "
                                 "energies, and hard-thresholded Fourier reconstructions; San Miguel is our courtyard, "
                                 f"the Cornell box Mitsuba's. Sizes: {scale.sizes_text('5')}.")
-
-
-def _claim_values(claim, source):
-    if claim["type"] == "greater":
-        return source(claim["larger"]), source(claim["smaller"])
-    return source(claim["quantity"])
 
 
 def _figure_5_1(run):
@@ -176,7 +169,7 @@ def chapter_7(run):
             return per_thesis_row(quantity, lambda label: _value(rows, _printed_number(label), domain, energy))
 
         for claim in table_claims(number):
-            verdicts.append(judge(claim, _claim_values(claim, ours), subject=subject).sentence)
+            verdicts.append(judge(claim, claim_values(claim, ours), subject=subject).sentence)
         best = max((gamma for gamma in GAMMAS if gamma < 1.0), key=lambda gamma: _mean_ssim(ssim_rows, gamma) or -1)
         measured = ([_mean_ssim(ssim_rows, best)], [_mean_ssim(ssim_rows, 1.0)])
         sentence = figure_claim(ssim_figure, measured if None not in (measured[0][0], measured[1][0]) else None,
