@@ -128,12 +128,18 @@ class SampleCountingScene:
         self.path_samples += count * int(spp)
         return self._scene.sample_cells(layout, grid_shape, first_cell, cell_count, spp, seed, cells=cells)
 
-    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None):
+    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None,
+                      auxiliary=(), lanes=None):
         width, height = resolution or (self._scene.width, self._scene.height)
         count = width * height - first_pixel if pixel_count is None else pixel_count
-        self.path_samples += int(count) * int(spp)
+        self.path_samples += int(count) * int(spp) if lanes is None else int(np.size(lanes[0]))
         return self._scene.sample_pixels(layout, grid_shape, spp, seed, first_pixel=first_pixel,
-                                         pixel_count=pixel_count, resolution=resolution)
+                                         pixel_count=pixel_count, resolution=resolution, auxiliary=auxiliary,
+                                         lanes=lanes)
+
+    def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, lanes=None):
+        self.path_samples += self._pixels() * int(spp) if lanes is None else int(np.size(lanes[0]))
+        return self._scene.sample_pixel_statistics(layout, grid_shape, seed, names, spp=spp, lanes=lanes)
 
     def render_estimator(self, layout, spp, seed):
         self.path_samples += self._pixels() * int(spp)

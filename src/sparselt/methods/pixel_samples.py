@@ -9,7 +9,7 @@ budget, so ``samples-mean`` shows what the reconstruction itself adds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -33,6 +33,10 @@ class PixelSamples:
         Output ``(width, height)``.
     nonfinite : int
         Samples that were NaN or infinite (replaced by 0).
+    auxiliary : dict
+        Per-sample quantities drawn in the same kernel
+        (:data:`~sparselt.rendering.mitsuba_backend.AUXILIARY_QUANTITIES`), one
+        row per sample in the order of ``values``; empty unless requested.
     """
 
     values: np.ndarray
@@ -40,6 +44,7 @@ class PixelSamples:
     spp: int
     resolution: tuple
     nonfinite: int
+    auxiliary: dict = field(default_factory=dict)
 
     def pixel_means(self):
         """Per-pixel mean RGB, shape (height, width, 3), float32 (accumulated in float64)."""
@@ -48,23 +53,34 @@ class PixelSamples:
 
     def fold(self, index, folds=2):
         """The samples whose index within their pixel is ``index`` modulo ``folds`` (a cross-fitting fold)."""
-        values = self.values.reshape(-1, self.spp, 3)[:, index::folds]
-        cells = self.cells.reshape(-1, self.spp)[:, index::folds]
-        return PixelSamples(values=np.ascontiguousarray(values).reshape(-1, 3),
-                            cells=np.ascontiguousarray(cells).reshape(-1), spp=values.shape[1],
-                            resolution=self.resolution, nonfinite=0)
+        def take(array):
+            per_pixel = array.reshape((-1, self.spp) + array.shape[1:])[:, index::folds]
+            return np.ascontiguousarray(per_pixel).reshape((-1,) + array.shape[1:])
+
+        return PixelSamples(values=take(self.values), cells=take(self.cells), spp=len(range(index, self.spp, folds)),
+                            resolution=self.resolution, nonfinite=0,
+                            auxiliary={name: take(array) for name, array in self.auxiliary.items()})
 
     def pixel_means_of(self, per_sample):
-        """Per-pixel mean of any per-sample quantity, shape (height, width)."""
+        """Per-pixel mean of any per-sample quantity, shape (height, width) (or (height, width, channels))."""
         width, height = self.resolution
-        return np.asarray(per_sample, dtype=np.float64).reshape(height, width, self.spp).mean(axis=2)
+        per_sample = np.asarray(per_sample)
+        return per_sample.reshape((height, width, self.spp) + per_sample.shape[1:]).mean(axis=2, dtype=np.float64)
+
+    def per_pixel(self, per_sample):
+        """A per-sample quantity as ``(height, width, spp, ...)`` (a view)."""
+        width, height = self.resolution
+        per_sample = np.asarray(per_sample)
+        return per_sample.reshape((height, width, self.spp) + per_sample.shape[1:])
 
 
-def draw_pixel_samples(context, budget, *, resolution=None):
+def draw_pixel_samples(context, budget, *, resolution=None, auxiliary=()):
     """Draw ``budget.spp`` samples per pixel in launches of about 4M lanes.
 
     ``resolution`` (default the comparison's output resolution) is the pixel
     grid: a pilot pass for an importance map draws per map cell instead.
+    ``auxiliary`` names per-sample quantities drawn in the same kernels
+    (:data:`~sparselt.rendering.mitsuba_backend.AUXILIARY_QUANTITIES`).
     """
     width, height = resolution or context.resolution
     pixels = width * height
@@ -72,15 +88,23 @@ def draw_pixel_samples(context, budget, *, resolution=None):
     values = np.empty((pixels * budget.spp, 3), dtype=np.float32)
     cells = np.empty(pixels * budget.spp, dtype=np.int64)
     nonfinite = 0
+    recorded = {}
     for first in range(0, pixels, per_launch):
         count = min(per_launch, pixels - first)
-        launch_values, launch_cells, bad = context.scene.sample_pixels(
+        launch = context.scene.sample_pixels(
             context.layout, context.grid_shape, budget.spp, budget.seed, first_pixel=first, pixel_count=count,
-            resolution=(width, height))
-        values[first * budget.spp:(first + count) * budget.spp] = launch_values
-        cells[first * budget.spp:(first + count) * budget.spp] = launch_cells
+            resolution=(width, height), **({"auxiliary": tuple(auxiliary)} if auxiliary else {}))
+        launch_values, launch_cells, bad = launch[:3]
+        rows = slice(first * budget.spp, (first + count) * budget.spp)
+        values[rows] = launch_values
+        cells[rows] = launch_cells
         nonfinite += bad
-    return PixelSamples(values=values, cells=cells, spp=budget.spp, resolution=(width, height), nonfinite=nonfinite)
+        for name, array in (launch[3].items() if auxiliary else ()):
+            if name not in recorded:
+                recorded[name] = np.empty((pixels * budget.spp,) + array.shape[1:], dtype=array.dtype)
+            recorded[name][rows] = array
+    return PixelSamples(values=values, cells=cells, spp=budget.spp, resolution=(width, height), nonfinite=nonfinite,
+                        auxiliary=recorded)
 
 
 def sample_mean_image(context, budget, timer):

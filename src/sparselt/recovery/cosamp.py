@@ -20,6 +20,10 @@ CoSaMP iteration (Needell & Tropp 2009):
 It stops when the relative residual falls below ``tolerance``, when it has not
 improved for ``patience`` iterations (compressible or noisy signals: the best
 estimate is kept), or after ``max_iterations``.
+
+Model-based CoSaMP (Baraniuk et al. 2010): with ``allowed``, a set of
+frequencies known to hold the signal's support, step 2 selects among those
+only, so the support never leaves them.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import math
 import numpy as np
 
 from ..checks import check_integer
-from ..fourier.hermitian import keep_within
+from ..fourier.hermitian import keep_within, partner_indices
 from ..measurement import PhaseTimer
 from ..operators.base import SupportRestricted
 from .result import RecoveryResult
@@ -152,6 +156,51 @@ def _warm_least_squares(operator, merged, support, values, spectrum, samples, re
     return _conjugate_gradient(operator, merged, warm, samples, residual, gradient, steps)
 
 
+def _allowed_entries(operator, allowed):
+    """The coefficient entries (flat, sorted) that a full-spectrum mask ``allowed`` admits, or None for all.
+
+    ``allowed`` is a boolean array of the signal's grid shape over the full
+    spectrum (``numpy.fft.fftn`` order). For a real operator it must be
+    Hermitian-symmetric, so that it keeps or drops each conjugate pair whole;
+    its half-spectrum entries are kept, less the non-canonical ones (their
+    canonical partner stands for the pair).
+    """
+    if allowed is None:
+        return None
+    grid_shape = getattr(operator, "grid_shape", None)
+    coefficient_shape = getattr(operator, "coefficient_shape", None)
+    if grid_shape is None or coefficient_shape is None:
+        raise TypeError(f"allowed needs an operator with grid_shape and coefficient_shape (as PartialFourier has), "
+                        f"got {type(operator).__name__}")
+    mask = np.asarray(allowed)
+    if mask.dtype != np.bool_:
+        raise TypeError(f"allowed must be a boolean mask over the spectrum, got dtype {mask.dtype}")
+    if mask.shape != tuple(grid_shape):
+        raise ValueError(f"allowed must have the signal's grid shape {tuple(grid_shape)} (the full spectrum), "
+                         f"got {mask.shape}")
+    if not operator.real:
+        entries = np.flatnonzero(mask)
+    else:
+        partner = np.roll(np.flip(mask), 1, axis=tuple(range(mask.ndim)))  # mask at -k mod shape
+        if not np.array_equal(mask, partner):
+            bad = np.unravel_index(int(np.flatnonzero(mask != partner)[0]), mask.shape)
+            raise ValueError(f"allowed must be Hermitian-symmetric for a real signal (frequency k allowed exactly "
+                             f"when -k is), but differs from its mirror at {tuple(int(v) for v in bad)}; "
+                             "build it symmetric (mask | mask at -k)")
+        entries = np.flatnonzero(mask[..., :coefficient_shape[-1]])
+        last = grid_shape[-1]
+        plane = entries % coefficient_shape[-1]
+        in_plane = (plane == 0) | ((last % 2 == 0) & (2 * plane == last))
+        if in_plane.any():  # both members of a pair are half-spectrum entries: keep the canonical one
+            full = np.ravel_multi_index(np.unravel_index(entries[in_plane], coefficient_shape), grid_shape)
+            keep = np.ones(entries.size, dtype=bool)
+            keep[in_plane] = partner_indices(grid_shape, full) >= full
+            entries = entries[keep]
+    if entries.size == 0:
+        raise ValueError("allowed admits no coefficient: give at least one allowed frequency")
+    return entries.astype(np.int64)
+
+
 def _check_callback(callback):
     if callback is not None and not callable(callback):
         raise TypeError(f"callback must be callable or None, got {callback!r}")
@@ -178,7 +227,7 @@ def _stop(relative, tolerance, callback, iteration, support, values):
 
 
 def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugate_gradient_steps=4,
-           patience=2, stagnation=1e-3, callback=None):
+           patience=2, stagnation=1e-3, callback=None, allowed=None):
     """Compressive Sampling Matching Pursuit (Needell & Tropp 2009; thesis Algorithm 2).
 
     Parameters
@@ -203,6 +252,13 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
         Called after every iteration as ``callback(iteration, relative_residual,
         support, values)`` (PyLops' and sigpy's hook); returning True stops
         the run (stop reason ``'callback'``).
+    allowed : ndarray of bool, optional
+        Model-based recovery: a mask of the signal's grid shape over the full
+        spectrum (``numpy.fft.fftn`` order), True where a frequency may enter
+        the support; the ``2K`` selection looks at those only. For a real
+        signal it must be Hermitian-symmetric (``k`` allowed exactly when
+        ``-k`` is), so that conjugate pairs stay whole. Default: every
+        frequency (plain CoSaMP).
 
     Returns
     -------
@@ -212,15 +268,29 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
     Raises
     ------
     ValueError
-        K out of range, y of the wrong length, NaN in y.
+        K out of range, y of the wrong length, NaN in y; ``allowed`` of the
+        wrong shape, not Hermitian-symmetric (real signals) or empty.
+    TypeError
+        ``allowed`` not boolean.
+
+    Notes
+    -----
+    With ``allowed`` the merged support, and so the estimate, lies inside the
+    mask: CoSaMP over the union-of-subspaces model of the mask's
+    frequencies (Baraniuk et al. 2010, whose model-based CoSaMP replaces the
+    two top-K steps by the model's best approximation; for a fixed set of
+    frequencies that is top-K within the set).
 
     References
     ----------
     D. Needell and J. A. Tropp, "CoSaMP: Iterative signal recovery from
     incomplete and inaccurate samples", ACHA 26(3), 2009. Thesis 2.2.1.
+    R. G. Baraniuk, V. Cevher, M. F. Duarte and C. Hegde, "Model-based
+    compressive sensing", IEEE Trans. Inf. Theory 56(4), 2010.
     """
     samples, tolerance, callback, clock, transforms_before, norm, support, values, residual, history = _start(
         operator, y, sparsity, tolerance, callback, ("proxy", "select", "least_squares", "prune", "residual"))
+    candidates = _allowed_entries(operator, allowed)
     best = (math.inf, support, values)
     stop_reason = "max_iterations"
     quiet = 0
@@ -230,7 +300,11 @@ def cosamp(operator, y, sparsity, *, max_iterations=30, tolerance=1e-6, conjugat
             spectrum = operator.transform_samples(residual)
             energy = operator.proxy_energy(spectrum)
         with clock("select"):
-            merged = _sorted_union(_largest(energy, 2 * sparsity, operator), support)
+            if candidates is None:
+                selected = _largest(energy, 2 * sparsity, operator)
+            else:
+                selected = _largest(energy[candidates], 2 * sparsity, operator, labels=candidates)
+            merged = _sorted_union(selected, support)
         with clock("least_squares"):
             merged_values, _ = _warm_least_squares(operator, merged, support, values, spectrum, samples, residual,
                                                    conjugate_gradient_steps)

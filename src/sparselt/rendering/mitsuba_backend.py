@@ -320,7 +320,7 @@ class MitsubaScene:
 
     # -- primary-sample-space evaluation ------------------------------------
 
-    def _path_contribution(self, layout, samples):
+    def _path_contribution(self, layout, samples, auxiliary=None):
         """Radiance of the paths defined by explicit PSS samples.
 
         ``samples`` maps each name in ``layout.dimensions`` to a ``mi.Float``.
@@ -328,6 +328,10 @@ class MitsubaScene:
         heuristic between next-event estimation and BSDF sampling) without
         Russian roulette; ``layout`` says which vertices sample lights and which
         emission hits count (see :mod:`sparselt.rendering.layout`).
+
+        ``auxiliary``, a dict, receives the per-sample quantities of
+        :data:`AUXILIARY_QUANTITIES` computed in the same kernel (the
+        frequency-analysis filters' inputs, Mehta et al. 2012-2014).
         """
         scene = self.scene
         context = mi.BSDFContext()
@@ -339,6 +343,8 @@ class MitsubaScene:
         active = mi.Bool(True)
 
         interaction = scene.ray_intersect(ray, active)
+        if auxiliary is not None:
+            self._record_primary(auxiliary, interaction, samples, layout)
         if layout.count_camera_emission:
             result += throughput * interaction.emitter(scene).eval(interaction, active)
 
@@ -362,6 +368,10 @@ class MitsubaScene:
             active &= dr.max(throughput) > 0.0
             ray = interaction.spawn_ray(interaction.to_world(bsdf_sample.wo))
             next_interaction = scene.ray_intersect(ray, active)
+            if auxiliary is not None and index == 1:
+                hit = active & next_interaction.is_valid()
+                auxiliary["secondary_distance"] = dr.select(hit, next_interaction.t, dr.inf)
+                auxiliary["secondary_diffuse"] = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Diffuse)
 
             if plan.count_emission_hit:
                 emitter_sample = mi.DirectionSample3f(scene, si=next_interaction, ref=interaction)
@@ -373,6 +383,50 @@ class MitsubaScene:
                 result += dr.select(active, throughput * emission, 0.0)
             interaction = next_interaction
         return result
+
+    def _record_primary(self, auxiliary, interaction, samples, layout):
+        """The camera ray's hit: camera-space depth, shading normal, diffuse reflectance; the lens sample."""
+        origin, forward = self._camera_axis()
+        valid = interaction.is_valid()
+        offset = interaction.p - mi.Point3f(*origin)
+        depth = offset.x * forward[0] + offset.y * forward[1] + offset.z * forward[2]
+        auxiliary["primary_depth"] = dr.select(valid, depth, dr.inf)
+        auxiliary["primary_normal"] = dr.select(valid, interaction.sh_frame.n, 0.0)
+        bsdf = interaction.bsdf()
+        auxiliary["diffuse_albedo"] = dr.select(valid, mi.Color3f(bsdf.eval_diffuse_reflectance(interaction, valid)),
+                                                0.0)
+        if layout.thin_lens:
+            auxiliary["lens_u"] = samples["lens_u"]
+            auxiliary["lens_v"] = samples["lens_v"]
+        # Defaults for quantities a path without a first bounce never sets.
+        auxiliary["secondary_distance"] = dr.full(mi.Float, dr.inf, dr.width(depth))
+        auxiliary["secondary_diffuse"] = dr.full(mi.Bool, False, dr.width(depth))
+
+    def _camera_axis(self):
+        """World-space position of the camera and its unit optical axis (local +z)."""
+        matrix = np.array(self.sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
+        forward = matrix[:3, 2] / np.linalg.norm(matrix[:3, 2])
+        return tuple(float(v) for v in matrix[:3, 3]), tuple(float(v) for v in forward)
+
+    def lens_geometry(self):
+        """The thin lens as the frequency analysis of depth of field needs it (Mehta et al. 2014, 3).
+
+        Returns
+        -------
+        dict
+            ``aperture_radius`` and ``focus_distance`` (scene units; aperture 0
+            for a pinhole), ``pixels_per_tangent``: film pixels per unit of
+            ``tan`` of the angle off the optical axis along x (``width / (2 tan(fov_x / 2))``).
+        """
+        camera = self.camera
+        return {"aperture_radius": float(camera.aperture_radius or 0.0),
+                "focus_distance": float(camera.focus_distance),
+                "pixels_per_tangent": self._pixels_per_tangent()}
+
+    def _pixels_per_tangent(self):
+        parameters = mi.traverse(self.sensor)
+        fov = float(np.ravel(np.asarray(parameters["x_fov"]))[0])
+        return self.width / (2.0 * np.tan(np.radians(fov) / 2.0))
 
     def sample_cells(self, layout, grid_shape, first_cell, cell_count, spp, seed, *, cells=None):
         """Mean of ``spp`` jittered samples in each of a run of grid cells.
@@ -431,7 +485,8 @@ class MitsubaScene:
         dr.eval(sums, bad)
         return _rgb_array(sums), np.asarray(bad, dtype=np.int64)
 
-    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None):
+    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None,
+                      auxiliary=(), lanes=None):
         """``spp`` path samples per film pixel, each at a uniformly random point of the pixel's PSS box.
 
         The image-plane dimensions are jittered inside the film pixel; every
@@ -458,6 +513,14 @@ class MitsubaScene:
         resolution : tuple of int, optional
             ``(width, height)`` of the pixel grid the samples are drawn per
             (default the film's): a pilot pass draws per cell of a coarser map.
+        auxiliary : tuple of str, optional
+            Names of :data:`AUXILIARY_QUANTITIES` to return as well.
+        lanes : tuple of two int arrays, optional
+            ``(pixels, sample_indices)``: draw exactly these samples (any
+            number per pixel: an adaptive allocation) instead of ``spp`` per
+            pixel of the run; ``spp``, ``first_pixel`` and ``pixel_count``
+            are then ignored. Sample ``i`` of pixel ``p`` is the same sample
+            either way.
 
         Returns
         -------
@@ -468,11 +531,35 @@ class MitsubaScene:
             Flat C-order grid cell of each sample.
         nonfinite : int
             Number of samples that were NaN or infinite.
+        auxiliary : dict, only when ``auxiliary`` names quantities
+            Each requested name of :data:`AUXILIARY_QUANTITIES` -> a numpy
+            array with one row per sample, computed in the same kernel.
         """
+        unknown = sorted(set(auxiliary) - set(AUXILIARY_QUANTITIES))
+        if unknown:
+            raise ValueError(f"unknown auxiliary quantities {unknown}; choose from {', '.join(AUXILIARY_QUANTITIES)}")
+        if any(name.startswith("lens_") for name in auxiliary) and not layout.thin_lens:
+            raise ValueError("lens coordinates need a thin-lens camera (give --aperture)")
         film_width, film_height = (self.width, self.height) if resolution is None else (int(v) for v in resolution)
-        total = film_width * film_height
-        pixel_count = total - int(first_pixel) if pixel_count is None else int(pixel_count)
-        pixel, generator, lanes = _lanes(pixel_count, spp, seed, first=first_pixel)
+        pixel_count = film_width * film_height - int(first_pixel) if pixel_count is None else int(pixel_count)
+        _, samples, cell = self._pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count,
+                                             (film_width, film_height), lanes)
+        recorded = {} if auxiliary else None
+        value, finite = _zero_nonfinite(self._path_contribution(layout, samples, recorded))
+        extra = [recorded[name] for name in auxiliary]
+        dr.eval(value, cell, finite, *extra)
+        result = (_rgb_array((value.x, value.y, value.z)), np.asarray(cell, dtype=np.int64), _count_false(finite))
+        if not auxiliary:
+            return result
+        return result + ({name: _to_numpy(recorded[name]) for name in auxiliary},)
+
+    def _pixel_lanes(self, layout, grid_shape, spp, seed, first_pixel, pixel_count, film_size, lanes):
+        """The PSS vectors of pixel samples (see :meth:`sample_pixels`): ``(pixel, samples, cell)`` per lane."""
+        film_width, film_height = film_size
+        if lanes is None:
+            pixel, generator, _ = _lanes(pixel_count, spp, seed, first=first_pixel)
+        else:
+            pixel, generator = _explicit_lanes(lanes[0], lanes[1], seed)
         width = dr.opaque(mi.UInt32, film_width)
         pixel_x, pixel_y = pixel % width, pixel // width
         strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
@@ -491,10 +578,74 @@ class MitsubaScene:
                 coordinate = dr.minimum(mi.UInt32(uniform * resolution), mi.UInt32(resolution) - 1)
                 cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
             samples[name] = uniform
+        return pixel, samples, cell
 
-        value, finite = _zero_nonfinite(self._path_contribution(layout, samples))
-        dr.eval(value, cell, finite)
-        return _rgb_array((value.x, value.y, value.z)), np.asarray(cell, dtype=np.int64), _count_false(finite)
+    def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, lanes=None):
+        """Per-pixel reductions of per-sample quantities (:data:`PIXEL_STATISTICS`), reduced where they are drawn.
+
+        The samples are exactly those of :meth:`sample_pixels` (the same
+        random numbers): ``spp`` per film pixel, or the explicit ``lanes``
+        ``(pixels, sample_indices)`` sorted by pixel. Nothing per sample leaves
+        the kernel but the sums of an explicit-lanes pass, which are reduced in
+        numpy (in a fixed order: the same seed gives the same bytes; the
+        kernel's atomic additions would not).
+
+        Parameters
+        ----------
+        layout : PathLayout
+        grid_shape : tuple of int
+        seed : int
+        names : tuple of str
+            Keys of :data:`PIXEL_STATISTICS`.
+        spp : int, optional
+            Samples per pixel of every film pixel (one of ``spp``, ``lanes``).
+        lanes : tuple of two int arrays, optional
+
+        Returns
+        -------
+        statistics : dict
+            name -> float64 array ``(pixels,)`` or ``(pixels, 3)`` over every
+            film pixel (pixels without samples hold the reduction's identity).
+        nonfinite : int
+            Samples that were NaN or infinite (counted as 0).
+        """
+        unknown = sorted(set(names) - set(PIXEL_STATISTICS))
+        if unknown:
+            raise ValueError(f"unknown pixel statistics {unknown}; choose from {', '.join(PIXEL_STATISTICS)}")
+        if (spp is None) == (lanes is None):
+            raise ValueError("give exactly one of spp and lanes")
+        pixels = self.width * self.height
+        pixel, samples, _ = self._pixel_lanes(layout, grid_shape, spp, seed, 0, pixels, (self.width, self.height),
+                                              lanes)
+        recorded = {}
+        value, finite = _zero_nonfinite(self._path_contribution(layout, samples, recorded))
+        quantities = {name: _statistic_quantity(name, value, recorded) for name in names}
+        flat = {name: [quantity.x, quantity.y, quantity.z] if dr.size_v(quantity) == 3 else [quantity]
+                for name, quantity in quantities.items()}
+        dr.eval(finite, *[channel for channels in flat.values() for channel in channels])
+        nonfinite = _count_false(finite)
+        results = {}
+        if lanes is None:
+            operations = {"sum": dr.ReduceOp.Add, "min": dr.ReduceOp.Min, "max": dr.ReduceOp.Max}
+            reduced = {name: [dr.block_reduce(operations[PIXEL_STATISTICS[name]], channel, int(spp))
+                              for channel in channels] for name, channels in flat.items()}
+            dr.eval(*[channel for channels in reduced.values() for channel in channels])
+            for name, channels in reduced.items():
+                results[name] = _stacked(channels)
+            return results, nonfinite
+        pixel_ids = np.ascontiguousarray(lanes[0], dtype=np.int64)
+        starts = np.flatnonzero(np.concatenate(([True], pixel_ids[1:] != pixel_ids[:-1])))
+        owners = pixel_ids[starts]
+        for name, channels in flat.items():
+            reduction = PIXEL_STATISTICS[name]
+            per_lane = _stacked(channels)
+            operation = {"sum": np.add, "min": np.minimum, "max": np.maximum}[reduction]
+            identity = {"sum": 0.0, "min": np.inf, "max": -np.inf}[reduction]
+            result = np.full((pixels,) + per_lane.shape[1:], identity)
+            if owners.size:
+                result[owners] = operation.reduceat(per_lane, starts, axis=0)
+            results[name] = result
+        return results, nonfinite
 
     def render_estimator(self, layout, spp, seed):
         """Path tracing of the kind's own estimator (every PSS dimension uniform), ``spp`` per pixel, in one kernel.
@@ -630,6 +781,53 @@ class MitsubaScene:
         return buffers, seconds
 
 
+#: Per-sample quantities :meth:`MitsubaScene.sample_pixels` can return beside the path contributions.
+#: ``primary_depth``: camera-space depth (along the optical axis) of the camera ray's hit, ``inf`` for a miss;
+#: ``primary_normal`` (3): its shading normal; ``diffuse_albedo`` (3): its BSDF's diffuse reflectance;
+#: ``secondary_distance``: length of the ray sampled at the first vertex to its hit, ``inf`` for none;
+#: ``secondary_diffuse``: that ray was sampled from a diffuse lobe; ``lens_u``, ``lens_v``: the lens sample
+#: in primary sample space (thin lens only).
+AUXILIARY_QUANTITIES = ("primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance",
+                        "secondary_diffuse", "lens_u", "lens_v")
+
+#: Per-pixel statistics :meth:`MitsubaScene.sample_pixel_statistics` reduces, and their reduction.
+#: ``rgb`` / ``rgb_squared``: the path contribution and its square; ``diffuse_rgb``: the contribution of samples
+#: whose secondary ray came from a diffuse lobe; ``albedo``, ``normal``: the camera hit's diffuse reflectance and
+#: shading normal; ``depth``, ``hits``: the camera hit's depth and 1 (0 for a miss); ``nearest``, ``farthest``:
+#: the camera hit's depth (``inf`` for a miss); ``shortest``: the diffuse-lobe secondary ray's length (``inf``
+#: otherwise).
+PIXEL_STATISTICS = {"rgb": "sum", "rgb_squared": "sum", "diffuse_rgb": "sum", "albedo": "sum", "normal": "sum",
+                    "depth": "sum", "hits": "sum", "nearest": "min", "farthest": "max", "shortest": "min"}
+
+
+def _statistic_quantity(name, value, recorded):
+    """The per-sample quantity behind a :data:`PIXEL_STATISTICS` name."""
+    depth = recorded["primary_depth"]
+    if name == "rgb":
+        return value
+    if name == "rgb_squared":
+        return value * value
+    if name == "diffuse_rgb":
+        return dr.select(recorded["secondary_diffuse"], value, 0.0)
+    if name == "albedo":
+        return recorded["diffuse_albedo"]
+    if name == "normal":
+        return recorded["primary_normal"]
+    if name == "depth":
+        return dr.select(dr.isfinite(depth), depth, 0.0)
+    if name == "hits":
+        return dr.select(dr.isfinite(depth), mi.Float(1.0), mi.Float(0.0))
+    if name in ("nearest", "farthest"):
+        return mi.Float(depth)
+    return dr.select(recorded["secondary_diffuse"], recorded["secondary_distance"], dr.inf)  # shortest
+
+
+def _stacked(channels):
+    """Evaluated Dr.Jit channels as float64 ``(n,)`` (one) or ``(n, 3)`` (three)."""
+    arrays = [np.asarray(channel, dtype=np.float64) for channel in channels]
+    return arrays[0] if len(arrays) == 1 else np.stack(arrays, axis=1)
+
+
 GUIDED_STREAM = 0x9E37  # PCG32 stream of guided renders, apart from the signal and pixel-sample streams
 
 
@@ -659,6 +857,16 @@ def _lanes(count, spp, seed, *, first=0, stream=0, items=None):
     return item, generator, lanes
 
 
+def _explicit_lanes(items, sample_indices, seed, *, stream=0):
+    """Lanes for explicit (item, sample index) pairs, seeded exactly as :func:`_lanes` seeds them."""
+    item = mi.UInt32(np.ascontiguousarray(items, dtype=np.uint32))
+    sample_index = mi.UInt32(np.ascontiguousarray(sample_indices, dtype=np.uint32))
+    seed_value = dr.opaque(mi.UInt32, int(seed))
+    generator = mi.PCG32()
+    generator.seed(mi.sample_tea_64(item, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value) + stream)
+    return item, generator
+
+
 def _in_pixel(pixel, uniform, size):
     """A coordinate in ``[0, 1)`` jittered by ``uniform`` inside pixel ``pixel`` of ``size`` pixels."""
     return dr.minimum((mi.Float(pixel) + uniform) * dr.opaque(mi.Float, 1.0 / size), ONE_MINUS_EPSILON)
@@ -675,6 +883,15 @@ def _zero_nonfinite(value, valid=None):
 def _count_false(mask):
     array = np.asarray(mask)
     return int(array.size - np.count_nonzero(array))
+
+
+def _to_numpy(value):
+    """An evaluated Dr.Jit scalar or 3-vector per lane as numpy: float32 ``(n,)`` / ``(n, 3)``, bool ``(n,)``."""
+    if isinstance(value, mi.Bool):
+        return np.asarray(value, dtype=bool)
+    if dr.size_v(value) == 3:
+        return _rgb_array((value.x, value.y, value.z))
+    return np.asarray(value, dtype=np.float32)
 
 
 def _rgb_array(channels):

@@ -1,0 +1,336 @@
+r"""Axis-aligned filtering: per-pixel filter widths from a frequency analysis, and the image-space filter.
+
+The light field arriving at a pixel is not an arbitrary 4-D signal: the depth
+of what each sample hits confines its spectrum (Durand et al. 2005; Soler et
+al. 2009; Egan et al. 2009). Integrating over the lens (or over the
+hemisphere) then bandlimits the *image*, so the pixel's Monte Carlo noise can
+be filtered away by an image-space Gaussian as wide as that bandlimit allows,
+without blurring what the integral keeps (Mehta et al. 2012, 2013, 2014).
+
+**Depth of field** (Mehta et al. 2014, 3.1; Soler et al. 2009). A thin lens of
+radius ``a`` focused at depth ``f`` sees a point at camera-space depth ``z``
+displaced on the film, per unit of lens position, by ``1 - f / z``: in pixels
+the point's circle of confusion has the signed radius
+
+.. math:: c(z) = a \left(1 - \frac{f}{z}\right) \frac{P}{f}, \qquad
+          P = \frac{W}{2 \tan(\mathrm{fov}_x / 2)}
+
+(``W`` the film width in pixels). Its light field ``L(x, u) = T(x + c u)``
+has its spectrum on the line ``\Omega_u = c\,\Omega_x``; the aperture (a disc)
+multiplies it by the disc's spectrum, so the lens-integrated image at that
+pixel is the texture blurred by a disc of radius ``|c|``: bandlimited to
+``|\Omega_x| < 3.83 / |c|`` (the first zero of the disc's spectrum,
+``2 J_1(c\omega) / (c\omega)``, angular frequency). A pixel whose samples
+hit several depths is bandlimited by the *least* defocused one, and by the
+pixel itself (no filtering) when its samples straddle the focal plane.
+
+**Indirect light** (Mehta et al. 2013, 4). The irradiance at a receiver from
+reflectors at distance ``z`` or more changes, as the receiver moves, no faster
+than the diffuse transfer's bandlimit ``\Omega_h`` (about 2.8, Mehta et al.
+2013, 4.1) divided by ``z``: the spatial bandlimit is
+``\Omega_x = \Omega_h / z_{\min}`` in world units, with ``z_min`` the
+shortest secondary-ray length among the pixel's diffuse-lobe samples.
+The width on the film is ``\sigma_\mathrm{world} P / d`` at camera depth ``d``.
+
+**The filter width.** A Gaussian of standard deviation ``sigma`` has the
+response ``exp(-sigma^2 omega^2 / 2)``; we choose the widest Gaussian whose
+response is still 1/2 at the bandlimit: ``sigma = sqrt(2 ln 2) / Omega``
+(for depth of field ``sigma = 0.307 |c|``). This constant comes from the
+analysis, never from a reference image; below half a pixel the pixel's own
+box filter is the narrower one and the pixel is left as it is.
+
+**The filter** (:func:`axis_aligned_filter`). Each output pixel is a
+normalised Gaussian average with *its own* width (Mehta et al. 2012, 5), over
+taps spaced ``max(1, floor(sigma / 2))`` pixels apart (at most
+``(2 * 3 * 2 + 1)^2 = 169`` taps per pixel whatever the width, a bounded
+cost), weighted by the similarity of a guide: neighbours whose guide differs
+from the pixel's by more than the guide tolerance are surfaces the pixel's
+analysis does not describe (across a depth discontinuity) and are left out:
+weight ``exp(-|g_p - g_q|^2 / (2 tau_p^2))``.
+
+References
+----------
+Mehta, S. U., Wang, B., Ramamoorthi, R. (2012). Axis-aligned filtering for
+interactive sampled soft shadows. ACM TOG 31(6). Mehta, S. U., Wang, B.,
+Ramamoorthi, R., Durand, F. (2013). Axis-aligned filtering for interactive
+physically-based diffuse indirect lighting. ACM TOG 32(4). Mehta, S. U., Yao,
+J., Ramamoorthi, R., Durand, F. (2014). Factored axis-aligned filtering for
+rendering multiple distribution effects. ACM TOG 33(4). Soler, C., Subr, K.,
+Durand, F., Holzschuch, N., Sillion, F. (2009). Fourier depth of field. ACM TOG 28(2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: sigma * bandlimit (angular frequency) of the widest Gaussian whose response is 1/2 at the bandlimit.
+HALF_RESPONSE = math.sqrt(2.0 * math.log(2.0))
+#: First zero of the disc's spectrum 2 J1(x) / x (a circle of confusion of radius 1 pixel).
+DISC_FIRST_ZERO = 3.8317059702075125
+#: sigma = DOF_WIDTH * |circle of confusion radius| (pixels).
+DOF_WIDTH = HALF_RESPONSE / DISC_FIRST_ZERO
+#: Mehta et al. (2013), 4.1: the bandlimit of the diffuse (clamped cosine) transfer.
+DIFFUSE_BANDLIMIT = 2.8
+#: Below this width (pixels) the pixel's box filter is narrower than the analysis's: the pixel is not filtered.
+MINIMUM_SIGMA = 0.5
+#: The window spans this many standard deviations on each side.
+WINDOW_SIGMAS = 3.0
+#: Taps are spaced sigma / TAPS_PER_SIGMA apart (at least 1 pixel).
+TAPS_PER_SIGMA = 2.0
+
+
+def circle_of_confusion(depth, aperture_radius, focus_distance, pixels_per_tangent):
+    """Signed circle-of-confusion radius in pixels of points at camera-space ``depth`` (module docstring).
+
+    Parameters
+    ----------
+    depth : array_like
+        Camera-space depth along the optical axis; ``inf`` (a miss: the
+        environment at infinity) gives the limit ``a P / f``.
+    aperture_radius, focus_distance : float
+        The thin lens (scene units).
+    pixels_per_tangent : float
+        ``W / (2 tan(fov_x / 2))``.
+
+    Returns
+    -------
+    ndarray of float64
+        Positive behind the focal plane, negative in front of it.
+
+    Raises
+    ------
+    ValueError
+        A pinhole camera (aperture 0) or a non-positive focus distance.
+    """
+    if not aperture_radius > 0:
+        raise ValueError(f"depth-of-field analysis needs a thin-lens camera, got aperture radius {aperture_radius!r}: "
+                         "give --aperture (and --focus-distance)")
+    if not focus_distance > 0:
+        raise ValueError(f"focus distance must be positive, got {focus_distance!r}")
+    depth = np.asarray(depth, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        return aperture_radius * (1.0 - focus_distance / depth) * (pixels_per_tangent / focus_distance)
+
+
+def depth_range(depth_per_pixel):
+    """Nearest and farthest camera-space depth of each pixel's samples (``inf`` for the environment).
+
+    Parameters
+    ----------
+    depth_per_pixel : ndarray, shape (height, width, spp)
+
+    Returns
+    -------
+    nearest, farthest : ndarray, shape (height, width)
+    """
+    depth = np.asarray(depth_per_pixel)
+    return depth.min(axis=-1).astype(np.float64), depth.max(axis=-1).astype(np.float64)
+
+
+def dof_filter_width(nearest, farthest, aperture_radius, focus_distance, pixels_per_tangent):
+    """Per-pixel Gaussian width (pixels) from the depth range of each pixel's samples.
+
+    The circle of confusion is monotonic in depth, so the least defocused
+    sample of a pixel is its nearest or its farthest one, and the samples
+    straddle the focal plane exactly when ``nearest < f < farthest``.
+
+    Parameters
+    ----------
+    nearest, farthest : ndarray, shape (height, width)
+        :func:`depth_range`.
+    aperture_radius, focus_distance, pixels_per_tangent : float
+        The thin lens (:func:`circle_of_confusion`).
+
+    Returns
+    -------
+    sigma : ndarray, shape (height, width)
+        ``DOF_WIDTH * min |c|`` over the pixel's samples; 0 where the samples
+        straddle the focal plane or the width is below :data:`MINIMUM_SIGMA`.
+    """
+    near_coc = circle_of_confusion(nearest, aperture_radius, focus_distance, pixels_per_tangent)
+    far_coc = circle_of_confusion(farthest, aperture_radius, focus_distance, pixels_per_tangent)
+    straddles = (near_coc < 0) & (far_coc > 0)
+    sigma = np.where(straddles, 0.0, DOF_WIDTH * np.minimum(np.abs(near_coc), np.abs(far_coc)))
+    return np.where(sigma < MINIMUM_SIGMA, 0.0, sigma)
+
+
+def indirect_filter_width(minimum_distance, pixel_depth, pixels_per_tangent, *, bandlimit=DIFFUSE_BANDLIMIT):
+    """Per-pixel Gaussian width from the shortest diffuse secondary ray (Mehta et al. 2013).
+
+    Parameters
+    ----------
+    minimum_distance : ndarray, shape (height, width)
+        ``z_min``: the shortest secondary-ray length among the pixel's
+        diffuse-lobe samples that hit geometry (``inf`` where none did).
+    pixel_depth : ndarray, shape (height, width)
+        Camera-space depth of the pixel's receiver (``inf`` for the environment).
+    pixels_per_tangent : float
+    bandlimit : float, optional
+        ``Omega_h`` of the receiver's transfer (default the diffuse 2.8).
+
+    Returns
+    -------
+    sigma_pixels : ndarray, shape (height, width)
+        Film width; 0 below :data:`MINIMUM_SIGMA` or where nothing was hit.
+    sigma_world : ndarray, shape (height, width)
+        The width on the receiver in scene units (the depth guide's tolerance).
+    """
+    if not bandlimit > 0:
+        raise ValueError(f"the transfer's bandlimit must be positive, got {bandlimit!r}")
+    distance = np.asarray(minimum_distance, dtype=np.float64)
+    depth = np.asarray(pixel_depth, dtype=np.float64)
+    sigma_world = HALF_RESPONSE * distance / bandlimit
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sigma_pixels = sigma_world * pixels_per_tangent / depth
+    usable = np.isfinite(sigma_pixels) & (depth > 0) & np.isfinite(depth)
+    sigma_pixels = np.where(usable, sigma_pixels, 0.0)
+    return np.where(sigma_pixels < MINIMUM_SIGMA, 0.0, sigma_pixels), np.where(usable, sigma_world, 0.0)
+
+
+_KERNEL = None
+
+
+def _compiled_kernel():
+    global _KERNEL
+    if _KERNEL is None:
+        import numba
+
+        @numba.njit(parallel=True, cache=True)
+        def kernel(image, sigma, guides, tolerance, fixed_guides, fixed_tolerance, maximum_radius, out, weights_out):
+            height, width, channels = image.shape
+            guide_channels = guides.shape[2]
+            fixed_channels = fixed_guides.shape[2]
+            inverse_fixed = 0.5 / (fixed_tolerance * fixed_tolerance) if fixed_tolerance > 0 else 0.0
+            for y in numba.prange(height):
+                for x in range(width):
+                    s = min(sigma[y, x], maximum_radius / 3.0)
+                    if s <= 0.0:
+                        for c in range(channels):
+                            out[y, x, c] = image[y, x, c]
+                        weights_out[y, x] = 1.0
+                        continue
+                    radius = min(maximum_radius, int(math.ceil(3.0 * s)))
+                    step = max(1, int(s / 2.0))
+                    reach = (radius // step) * step
+                    inverse_spatial = 0.5 / (s * s)
+                    tau = tolerance[y, x]
+                    inverse_range = 0.5 / (tau * tau) if tau > 0 else 0.0
+                    total = 0.0
+                    acc0 = 0.0
+                    acc1 = 0.0
+                    acc2 = 0.0
+                    for dy in range(-reach, reach + 1, step):
+                        qy = y + dy
+                        if qy < 0 or qy >= height:
+                            continue
+                        for dx in range(-reach, reach + 1, step):
+                            qx = x + dx
+                            if qx < 0 or qx >= width:
+                                continue
+                            exponent = (dx * dx + dy * dy) * inverse_spatial
+                            if inverse_range > 0.0:
+                                distance = 0.0
+                                for g in range(guide_channels):
+                                    difference = guides[y, x, g] - guides[qy, qx, g]
+                                    distance += difference * difference
+                                exponent += distance * inverse_range
+                            if inverse_fixed > 0.0:
+                                distance = 0.0
+                                for g in range(fixed_channels):
+                                    difference = fixed_guides[y, x, g] - fixed_guides[qy, qx, g]
+                                    distance += difference * difference
+                                exponent += distance * inverse_fixed
+                            if exponent > 30.0:
+                                continue
+                            weight = math.exp(-exponent)
+                            total += weight
+                            acc0 += weight * image[qy, qx, 0]
+                            acc1 += weight * image[qy, qx, 1]
+                            acc2 += weight * image[qy, qx, 2]
+                    out[y, x, 0] = acc0 / total
+                    out[y, x, 1] = acc1 / total
+                    out[y, x, 2] = acc2 / total
+                    weights_out[y, x] = total
+            return out
+
+        _KERNEL = kernel
+    return _KERNEL
+
+
+def _guide_array(guide, shape, name):
+    guides = np.asarray(guide, dtype=np.float64)
+    if guides.ndim == 2:
+        guides = guides[..., None]
+    if guides.ndim != 3 or guides.shape[:2] != shape:
+        raise ValueError(f"{name} must cover the image {shape}, got shape {guides.shape}")
+    return np.ascontiguousarray(np.nan_to_num(guides, nan=0.0, posinf=1e30, neginf=-1e30))
+
+
+def axis_aligned_filter(image, sigma, *, guide=None, tolerance=None, fixed_guide=None, fixed_tolerance=None,
+                        maximum_radius=24):
+    """Filter ``image`` with a per-pixel Gaussian width and an optional guide (module docstring).
+
+    Parameters
+    ----------
+    image : ndarray, shape (height, width, 3)
+    sigma : ndarray, shape (height, width)
+        Each output pixel's standard deviation in pixels (0: copied unchanged).
+    guide : ndarray, shape (height, width) or (height, width, k), optional
+        What must be similar for a neighbour to enter (depth, circle of confusion, normal).
+    tolerance : ndarray, shape (height, width), or float, optional
+        Per-pixel guide tolerance ``tau_p`` (required with ``guide``).
+    fixed_guide, fixed_tolerance : ndarray and float, optional
+        A second guide with one tolerance for every pixel (normals).
+    maximum_radius : int, optional
+        The window's half width never exceeds this (pixels): wider sigmas
+        are clipped to a third of it.
+
+    Returns
+    -------
+    ndarray, shape (height, width, 3), float32
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not match, a negative or non-finite width, a guide without tolerance.
+    """
+    image = np.ascontiguousarray(image, dtype=np.float64)
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"image must have shape (height, width, 3), got {image.shape}")
+    height, width = image.shape[:2]
+    sigma = np.ascontiguousarray(sigma, dtype=np.float64)
+    if sigma.shape != (height, width):
+        raise ValueError(f"sigma must have shape {(height, width)}, got {sigma.shape}")
+    if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
+        raise ValueError("sigma must be finite and non-negative everywhere")
+    if int(maximum_radius) < 1:
+        raise ValueError(f"maximum_radius must be at least 1, got {maximum_radius!r}")
+    if guide is None:
+        guides = np.zeros((height, width, 1))
+        tolerance = np.zeros((height, width))
+    else:
+        guides = _guide_array(guide, (height, width), "guide")
+        if tolerance is None:
+            raise ValueError("a guide needs its tolerance")
+        try:
+            tolerance = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), (height, width))
+        except ValueError:
+            raise ValueError(f"tolerance must be a number or an array of shape {(height, width)}, got shape "
+                             f"{np.shape(tolerance)}") from None
+        if not np.all(np.isfinite(tolerance)) or np.any(tolerance <= 0):
+            raise ValueError("tolerance must be finite and positive everywhere (a zero tolerance would switch the "
+                             "guide off)")
+    if fixed_guide is None:
+        fixed_guides, fixed_tolerance = np.zeros((height, width, 1)), 0.0
+    else:
+        fixed_guides = _guide_array(fixed_guide, (height, width), "fixed_guide")
+        if fixed_tolerance is None or not float(fixed_tolerance) > 0:
+            raise ValueError(f"a fixed guide needs a positive tolerance, got {fixed_tolerance!r}")
+    tolerance = np.ascontiguousarray(tolerance, dtype=np.float64)
+    out = np.empty_like(image)
+    weights = np.empty((height, width))
+    _compiled_kernel()(image, sigma, guides, tolerance, fixed_guides, float(fixed_tolerance), int(maximum_radius),
+                       out, weights)
+    return out.astype(np.float32)

@@ -1,0 +1,384 @@
+r"""Methods ``aaf-dof`` and ``aaf-indirect``: axis-aligned filtering from a per-sample frequency analysis.
+
+Both draw the samples of ``pt``'s budget in the sampler's own kernel together
+with what the analysis needs (the camera ray's hit depth; for indirect light
+the secondary ray's length, whether it was sampled from a diffuse lobe, the
+first hit's normal and diffuse reflectance: :data:`AUXILIARY_QUANTITIES`),
+derive each pixel's bandlimit and filter width
+(:mod:`sparselt.filters.axis_aligned`) and filter the pixel means with
+:func:`~sparselt.filters.axis_aligned.axis_aligned_filter`. Every second is
+counted: sampling with its auxiliary outputs, the analysis and the filter.
+
+``aaf-dof`` (Mehta et al. 2014, 3.1; Soler et al. 2009). The width is
+``0.307 min |c|`` pixels over the circles of confusion ``c`` of the pixel's
+samples (0 where they straddle the focal plane). Neighbours must lie at a
+similar defocus: the guide is the signed circles of confusion of the pixel's
+nearest and farthest sample (a pixel that mixes two surfaces matches neither
+pure neighbour), its tolerance the pixel's own width (at least one pixel): a neighbour whose defocus differs by less than the filter's scale is
+indistinguishable after filtering, one that differs by more is a surface
+across a depth discontinuity. The depths decide, not the sample positions.
+
+``aaf-indirect`` (Mehta et al. 2013). Factored by the lobe the first vertex
+sampled: samples whose secondary ray came from a diffuse lobe carry the
+diffuse indirect light, which the analysis bandlimits (``Omega_h / z_min``);
+they are demodulated by the pixel's mean diffuse reflectance, filtered and
+modulated back. Samples from glossy or specular lobes (the courtyard's glossy
+floor and plastic coatings) are not bandlimited by the diffuse transfer and
+are added unfiltered. Guides: the pixel's camera depth, with the width on the
+receiver in scene units as tolerance (neighbours farther than the filter's own
+scale in depth are another surface), and the mean shading normal (tolerance
+``normal_tolerance``).
+
+**Adaptive sampling** (Mehta et al. 2012, 4.3; 2013, 5). A pilot pass draws
+``pilot_fraction`` of the budget uniformly (at least 2 spp); the analysis of
+the pilot gives each pixel's filter width and so the factor ``r_p`` by which
+the filter will divide its variance (:func:`filter_variance_factor`); the rest
+of the budget goes where it lowers the filtered image's expected relMSE most,
+``n_p`` proportional to ``sqrt(v_p r_p)`` (:func:`allocate_samples`, ``v_p``
+the pilot's per-sample variance over ``(mean luminance)^2 + 0.01``, the
+relMSE's own weighting, smoothed over 5x5 pixels), each pixel at most
+``maximum_allocation`` times ``spp``. Every sample is counted. The papers
+derive the counts from the bandlimits alone; ours add the measured variance,
+because in-focus pixels (no filtering at all) carry most of the error.
+The final widths come from all of a pixel's samples.
+
+Both are biased (a filter), consistent only as the widths shrink; the bias is
+measured in ``tests/test_axis_aligned.py`` and in the experiments.
+
+References
+----------
+Mehta, Wang, Ramamoorthi (2012); Mehta, Wang, Ramamoorthi, Durand (2013);
+Mehta, Yao, Ramamoorthi, Durand (2014). See :mod:`sparselt.filters.axis_aligned`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, depth_range,
+                                    dof_filter_width, indirect_filter_width)
+from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
+from .options import MethodOptions, option
+from ..rendering.mitsuba_backend import PIXEL_STATISTICS
+from .registry import register
+
+
+
+STATISTICS_LIMIT = 1 << 22  # lanes per allocated launch
+
+
+def _maximum_radius():
+    return option(24, minimum=1, maximum=64, help="the filter window's half width never exceeds this (pixels)")
+
+
+@dataclass(frozen=True)
+class AxisAlignedOptions(MethodOptions):
+    """Options both axis-aligned filters share: the window and the adaptive sampling."""
+
+    width_scale: float = option(1.0, minimum=0.0, help="multiplies the analysis's filter width (1: the widest "
+                                "Gaussian whose response is 1/2 at the pixel's bandlimit; 0: no filtering)")
+    maximum_radius: int = _maximum_radius()
+    pilot_fraction: float = option(0.25, minimum=0.0, maximum=1.0,
+                                   help="share of the budget drawn uniformly first (at least 2 spp); the rest is "
+                                        "allocated per pixel from the analysis (Mehta et al. 2012, 4.3); 1: every "
+                                        "pixel gets spp samples")
+    maximum_allocation: float = option(8.0, minimum=1.0, help="no pixel gets more than this many times the "
+                                       "budget's spp")
+
+
+@dataclass(frozen=True)
+class AafDofOptions(AxisAlignedOptions):
+    """``aaf-dof``: the shared options only."""
+
+
+@dataclass(frozen=True)
+class AafIndirectOptions(AxisAlignedOptions):
+    bandlimit: float = option(DIFFUSE_BANDLIMIT, minimum=0.0, minimum_inclusive=False,
+                              help="Omega_h, the diffuse transfer's bandlimit (Mehta et al. 2013, 4.1: 2.8)")
+    normal_tolerance: float = option(0.3, minimum=0.0, minimum_inclusive=False,
+                                     help="tolerance of the shading-normal guide (unit normals)")
+
+
+class PixelStatistics:
+    """Per-pixel reductions of per-sample quantities, merged over a uniform pilot and allocated passes.
+
+    Each statistic (:data:`~sparselt.rendering.mitsuba_backend.PIXEL_STATISTICS`)
+    keeps its own per-pixel sample count: guides may come from the pilot alone.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(height, width)``.
+    """
+
+    def __init__(self, shape):
+        self.shape = tuple(shape)
+        self.counts = np.zeros(int(np.prod(shape)), dtype=np.int64)
+        self._values, self._counts, self._reductions = {}, {}, {}
+
+    def add(self, statistics, counts, reductions):
+        """Merge one pass: ``statistics`` name -> per-pixel reduction, ``counts`` its samples per pixel."""
+        counts = np.broadcast_to(np.asarray(counts, dtype=np.int64), self.counts.shape)
+        for name, value in statistics.items():
+            reduction = reductions[name]
+            if name not in self._values:
+                self._values[name], self._counts[name] = np.array(value, dtype=np.float64), counts.copy()
+                self._reductions[name] = reduction
+                continue
+            target = self._values[name]
+            if reduction == "sum":
+                target += value
+            elif reduction == "min":
+                np.minimum(target, value, out=target)
+            else:
+                np.maximum(target, value, out=target)
+            self._counts[name] += counts
+        self.counts += counts
+
+    def total(self, name):
+        """The reduction of ``name`` per pixel, shape ``(height, width, ...)``."""
+        value = self._values[name]
+        return value.reshape(self.shape + value.shape[1:])
+
+    def mean(self, name):
+        """The per-pixel sum of ``name`` over that statistic's own sample count."""
+        counts = np.maximum(self._counts[name], 1).reshape(self.shape).astype(np.float64)
+        total = self.total(name)
+        return total / counts.reshape(counts.shape + (1,) * (total.ndim - 2))
+
+    def relative_variance(self):
+        """Per-pixel variance of one sample (RGB mean) over (mean luminance^2 + 0.01), smoothed over 5x5 pixels.
+
+        From ``rgb`` and ``rgb_squared`` (the pilot's).
+        """
+        from ..images import luminance
+
+        count = np.maximum(self._counts["rgb_squared"], 2).reshape(self.shape)[..., None].astype(np.float64)
+        mean = self.total("rgb") / count
+        variance = np.maximum(self.total("rgb_squared") / count - mean * mean, 0.0) * count / (count - 1)
+        level = luminance(mean)
+        relative = variance.mean(axis=-1) / (level * level + 0.01)
+        padded = np.pad(relative, 2, mode="edge")
+        return np.lib.stride_tricks.sliding_window_view(padded, (5, 5)).mean(axis=(-1, -2))
+
+
+def filter_variance_factor(sigma, maximum_radius):
+    """Variance of :func:`axis_aligned_filter`'s output over its input's, per pixel, for independent pixels.
+
+    ``sum w^2 / (sum w)^2`` of the strided Gaussian taps (separable: the
+    square of the 1-D factor), without the guide and the image border; 1
+    where ``sigma`` is 0.
+    """
+    sigma = np.round(np.minimum(np.asarray(sigma, dtype=np.float64), maximum_radius / 3.0), 2)
+    values, inverse = np.unique(sigma, return_inverse=True)
+    table = np.ones(values.size)
+    for index, value in enumerate(values):
+        if value <= 0:
+            continue
+        radius = min(int(maximum_radius), int(np.ceil(3.0 * value)))
+        step = max(1, int(value / 2.0))
+        offsets = np.arange(-(radius // step) * step, (radius // step) * step + 1, step)
+        weights = np.exp(-0.5 * (offsets / value) ** 2)
+        table[index] = (np.sum(weights ** 2) / np.sum(weights) ** 2) ** 2
+    return table[inverse].reshape(sigma.shape)
+
+
+def allocate_samples(relative_variance, variance_factor, extra_total, cap):
+    """Extra samples per pixel minimising the filtered image's expected relMSE (Lagrange: ``n_p ∝ sqrt(v_p r_p)``).
+
+    Parameters
+    ----------
+    relative_variance : ndarray
+        Per-pixel variance of one sample over (mean luminance^2 + 0.01), from the pilot.
+    variance_factor : ndarray
+        :func:`filter_variance_factor` (the filter divides a pixel's variance by about ``1 / r_p``).
+    extra_total : int
+        Samples to hand out.
+    cap : int
+        No pixel gets more.
+
+    Returns
+    -------
+    ndarray of int64, same shape; sums to at most ``extra_total``.
+    """
+    weight = np.sqrt(np.maximum(relative_variance, 0.0) * variance_factor).reshape(-1)
+    if extra_total <= 0 or not np.any(weight > 0):
+        share = np.full(weight.size, min(cap, extra_total // max(1, weight.size)), dtype=np.int64)
+        return share.reshape(np.shape(relative_variance))
+    ideal = np.minimum(extra_total * weight / weight.sum(), cap)
+    counts = np.floor(ideal).astype(np.int64)
+    left = int(extra_total - counts.sum())
+    if left > 0:
+        order = np.argsort(-(ideal - counts), kind="stable")[:left]
+        counts[order] = np.minimum(counts[order] + 1, cap)
+    return counts.reshape(np.shape(relative_variance))
+
+
+def _summary(sigma):
+    filtered = sigma > 0
+    return {"filtered_pixel_fraction": float(filtered.mean()),
+            "median_sigma_pixels": float(np.median(sigma[filtered])) if filtered.any() else 0.0,
+            "max_sigma_pixels": float(sigma.max(initial=0.0))}
+
+
+class _AxisAligned(Method):
+    """Pilot, allocation, allocated samples, analysis, filter: the pipeline both methods share.
+
+    Subclasses give :attr:`statistics` (the per-pixel reductions every pass
+    gathers, :data:`~sparselt.rendering.mitsuba_backend.PIXEL_STATISTICS`),
+    :attr:`pilot_statistics` (those the pilot alone gives: guides),
+    :meth:`widths` (the analysis) and :meth:`finish` (the filtered image).
+    Every reduction happens in the sampling kernel; nothing per sample is
+    copied out of it for a uniform pass.
+    """
+
+    family = "filter"
+    statistics = ()
+    pilot_statistics = ()
+
+    def warm_up(self, context):
+        # A pilot of 2 spp and an allocated pass: both kernels and the filter compiled, result discarded.
+        self.run(context, Budget(spp=4, seed=WARM_UP_SEED))
+
+    def check(self, context):
+        """Refuse a context the analysis cannot describe, before any sampling (default: nothing)."""
+
+    def run(self, context, budget):
+        options = self.options_of(context)
+        self.check(context)
+        timer = PhaseTimer()
+        pilot_spp = min(budget.spp, max(2, int(round(options.pilot_fraction * budget.spp))))
+        width, height = context.resolution
+        statistics = PixelStatistics((height, width))
+        with timer("sampling"):
+            pilot, nonfinite = context.scene.sample_pixel_statistics(
+                context.layout, context.grid_shape, budget.seed, ("rgb_squared",) + self.pilot_statistics + self.statistics,
+                spp=pilot_spp)
+        with timer("integration"):
+            statistics.add(pilot, pilot_spp, PIXEL_STATISTICS)
+        if pilot_spp < budget.spp:
+            with timer("other"):
+                sigma, _ = self.widths(context, options, statistics)
+                extra = allocate_samples(statistics.relative_variance(),
+                                         filter_variance_factor(sigma, options.maximum_radius),
+                                         (budget.spp - pilot_spp) * width * height,
+                                         max(0, int(options.maximum_allocation * budget.spp) - pilot_spp))
+            nonfinite += self._draw_allocated(context, budget, pilot_spp, extra.reshape(-1), statistics, timer)
+        with timer("reconstruction"):
+            image, sigma, details = self.finish(context, options, statistics)
+        details.update(pilot_spp=pilot_spp, largest_pixel_spp=int(statistics.counts.max()),
+                       smallest_pixel_spp=int(statistics.counts.min()), nonfinite_samples=nonfinite,
+                       width_scale=options.width_scale, maximum_radius=options.maximum_radius,
+                       pilot_fraction=options.pilot_fraction, maximum_allocation=options.maximum_allocation)
+        details.update(_summary(sigma))
+        return MethodResult(image=np.asarray(image, dtype=np.float32), seconds=timer.seconds,
+                            path_samples=int(statistics.counts.sum()), details=details)
+
+    def _draw_allocated(self, context, budget, first_index, extra, statistics, timer):
+        """Draw ``extra[p]`` more samples of pixel ``p`` (sample indices from ``first_index``) into ``statistics``."""
+        with timer("other"):
+            pixels_with = np.flatnonzero(extra)
+            launch_of = np.cumsum(extra[pixels_with]) // STATISTICS_LIMIT  # groups of whole pixels
+            groups = np.split(pixels_with, np.flatnonzero(np.diff(launch_of)) + 1) if pixels_with.size else []
+        nonfinite = 0
+        for group in groups:
+            with timer("other"):
+                counts = extra[group]
+                pixel_ids = np.repeat(group, counts)
+                starts = np.repeat(np.cumsum(counts) - counts, counts)
+                sample_ids = first_index + np.arange(pixel_ids.size) - starts
+            with timer("sampling"):
+                reduced, bad = context.scene.sample_pixel_statistics(
+                    context.layout, context.grid_shape, budget.seed, self.statistics, lanes=(pixel_ids, sample_ids))
+            nonfinite += bad
+            with timer("integration"):
+                group_counts = np.zeros(statistics.counts.size, dtype=np.int64)
+                group_counts[group] = counts
+                statistics.add(reduced, group_counts, PIXEL_STATISTICS)
+        return nonfinite
+
+    def widths(self, context, options, statistics):  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def finish(self, context, options, statistics):  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+def _lens_arguments(context):
+    lens = context.scene.lens_geometry()
+    return lens["aperture_radius"], lens["focus_distance"], lens["pixels_per_tangent"]
+
+
+@register
+class AafDof(_AxisAligned):
+    name = "aaf-dof"
+    kinds = ("dof",)
+    Options = AafDofOptions
+    statistics = ("rgb", "nearest", "farthest")
+    description = ("axis-aligned filter for depth of field (Mehta et al. 2014): per-pixel Gaussian 0.307 x the "
+                   "least circle of confusion of the pixel's samples, guided by the mean circle of confusion; "
+                   "a quarter of the budget as pilot, the rest allocated per pixel")
+
+    def check(self, context):
+        circle_of_confusion(1.0, *_lens_arguments(context))  # a pinhole camera fails here
+
+    def widths(self, context, options, statistics):
+        sigma = dof_filter_width(statistics.total("nearest"), statistics.total("farthest"), *_lens_arguments(context))
+        return options.width_scale * sigma, None
+
+    def finish(self, context, options, statistics):
+        lens_arguments = _lens_arguments(context)
+        sigma, _ = self.widths(context, options, statistics)
+        # Both ends of the pixel's defocus range: a pixel that mixes two surfaces matches neither pure neighbour.
+        guide = np.stack([circle_of_confusion(statistics.total(end), *lens_arguments) for end in ("nearest", "farthest")],
+                         axis=-1)
+        image = axis_aligned_filter(statistics.mean("rgb"), sigma, guide=guide, tolerance=np.maximum(sigma, 1.0),
+                                    maximum_radius=options.maximum_radius)
+        return image, sigma, {"aperture_radius": lens_arguments[0], "focus_distance": lens_arguments[1],
+                              "guide": "signed circles of confusion of the nearest and farthest sample (depths)"}
+
+
+@register
+class AafIndirect(_AxisAligned):
+    name = "aaf-indirect"
+    kinds = ("indirect",)
+    Options = AafIndirectOptions
+    statistics = ("rgb", "diffuse_rgb", "shortest")
+    pilot_statistics = ("albedo", "normal", "depth", "hits")
+    description = ("axis-aligned filter for diffuse indirect light (Mehta et al. 2013): width from the shortest "
+                   "diffuse secondary ray per pixel, albedo-demodulated, glossy-lobe samples unfiltered; "
+                   "a quarter of the budget as pilot, the rest allocated per pixel")
+
+    def _pixel_depth(self, statistics):
+        hits = statistics.total("hits")
+        return np.where(hits > 0, statistics.total("depth") / np.maximum(hits, 1), np.inf)  # pilot sums both
+
+    def _safe(self, statistics):
+        # Demodulation needs a diffuse reflectance in every channel: other pixels (metals, the environment)
+        # are neither filtered nor taken as neighbours (their guide is out of reach).
+        return np.all(statistics.mean("albedo") > 1e-3, axis=-1)
+
+    def widths(self, context, options, statistics):
+        sigma, sigma_world = indirect_filter_width(statistics.total("shortest"), self._pixel_depth(statistics),
+                                                   context.scene.lens_geometry()["pixels_per_tangent"],
+                                                   bandlimit=options.bandlimit)
+        safe = self._safe(statistics)
+        return options.width_scale * np.where(safe, sigma, 0.0), options.width_scale * sigma_world
+
+    def finish(self, context, options, statistics):
+        sigma, sigma_world = self.widths(context, options, statistics)
+        safe = self._safe(statistics)[..., None]
+        means = statistics.mean("rgb")
+        diffuse_part = statistics.mean("diffuse_rgb")
+        albedo = statistics.mean("albedo")
+        irradiance = np.where(safe, diffuse_part / np.where(safe, albedo, 1.0), 0.0)
+        pixel_depth = self._pixel_depth(statistics)
+        depth_guide = np.where(np.isfinite(pixel_depth) & safe[..., 0], pixel_depth, 1e30)
+        filtered = axis_aligned_filter(irradiance, sigma, guide=depth_guide, tolerance=np.maximum(sigma_world, 1e-6),
+                                       fixed_guide=statistics.mean("normal"), fixed_tolerance=options.normal_tolerance,
+                                       maximum_radius=options.maximum_radius)
+        image = np.where(safe, filtered * albedo, diffuse_part) + (means - diffuse_part)
+        return image, sigma, {"bandlimit": options.bandlimit, "normal_tolerance": options.normal_tolerance,
+                              "guide": "camera depth (tolerance: the width on the receiver) and shading normal"}
