@@ -318,8 +318,8 @@ class AafDof(_AxisAligned):
     Options = AafDofOptions
     statistics = ("rgb", "nearest", "farthest")
     description = ("axis-aligned filter for depth of field (Mehta et al. 2014): per-pixel Gaussian 0.307 x the "
-                   "least circle of confusion of the pixel's samples, guided by the mean circle of confusion; "
-                   "a quarter of the budget as pilot, the rest allocated per pixel")
+                   "least circle of confusion of the pixel's samples, guided by the defocus of its nearest and "
+                   "farthest sample; a quarter of the budget as pilot, the rest allocated per pixel")
 
     def check(self, context):
         circle_of_confusion(1.0, *_lens_arguments(context))  # a pinhole camera fails here
