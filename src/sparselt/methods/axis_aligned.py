@@ -61,7 +61,7 @@ from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circ
                                     dof_filter_width, indirect_filter_width)
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .options import MethodOptions, option
-from ..rendering.mitsuba_backend import PIXEL_STATISTICS
+from ..rendering.mitsuba_backend import PIXEL_STATISTICS, REDUCTIONS
 from .registry import register
 
 
@@ -116,24 +116,17 @@ class PixelStatistics:
     def __init__(self, shape):
         self.shape = tuple(shape)
         self.counts = np.zeros(int(np.prod(shape)), dtype=np.int64)
-        self._values, self._counts, self._reductions = {}, {}, {}
+        self._values, self._counts = {}, {}
 
-    def add(self, statistics, counts, reductions):
+    def add(self, statistics, counts):
         """Merge one pass: ``statistics`` name -> per-pixel reduction, ``counts`` its samples per pixel."""
         counts = np.broadcast_to(np.asarray(counts, dtype=np.int64), self.counts.shape)
         for name, value in statistics.items():
-            reduction = reductions[name]
             if name not in self._values:
                 self._values[name], self._counts[name] = np.array(value, dtype=np.float64), counts.copy()
-                self._reductions[name] = reduction
                 continue
-            target = self._values[name]
-            if reduction == "sum":
-                target += value
-            elif reduction == "min":
-                np.minimum(target, value, out=target)
-            else:
-                np.maximum(target, value, out=target)
+            merge, _ = REDUCTIONS[PIXEL_STATISTICS[name]]
+            merge(self._values[name], value, out=self._values[name])
             self._counts[name] += counts
         self.counts += counts
 
@@ -257,7 +250,7 @@ class _AxisAligned(Method):
                 context.layout, context.grid_shape, budget.seed, ("rgb_squared",) + self.pilot_statistics + self.statistics,
                 spp=pilot_spp)
         with timer("integration"):
-            statistics.add(pilot, pilot_spp, PIXEL_STATISTICS)
+            statistics.add(pilot, pilot_spp)
         if pilot_spp < budget.spp:
             with timer("other"):
                 sigma, _ = self.widths(context, options, statistics)
@@ -296,7 +289,7 @@ class _AxisAligned(Method):
             with timer("integration"):
                 group_counts = np.zeros(statistics.counts.size, dtype=np.int64)
                 group_counts[group] = counts
-                statistics.add(reduced, group_counts, PIXEL_STATISTICS)
+                statistics.add(reduced, group_counts)
         return nonfinite
 
     def widths(self, context, options, statistics):  # pragma: no cover - interface

@@ -615,8 +615,7 @@ class MitsubaScene:
         if (spp is None) == (lanes is None):
             raise ValueError("give exactly one of spp and lanes")
         pixels = self.width * self.height
-        pixel, samples, _ = self._pixel_lanes(layout, grid_shape, spp, seed, 0, pixels, (self.width, self.height),
-                                              lanes)
+        _, samples, _ = self._pixel_lanes(layout, grid_shape, spp, seed, 0, pixels, (self.width, self.height), lanes)
         recorded = {}
         value, finite = _zero_nonfinite(self._path_contribution(layout, samples, recorded))
         quantities = {name: _statistic_quantity(name, value, recorded) for name in names}
@@ -639,8 +638,7 @@ class MitsubaScene:
         for name, channels in flat.items():
             reduction = PIXEL_STATISTICS[name]
             per_lane = _stacked(channels)
-            operation = {"sum": np.add, "min": np.minimum, "max": np.maximum}[reduction]
-            identity = {"sum": 0.0, "min": np.inf, "max": -np.inf}[reduction]
+            operation, identity = REDUCTIONS[reduction]
             result = np.full((pixels,) + per_lane.shape[1:], identity)
             if owners.size:
                 result[owners] = operation.reduceat(per_lane, starts, axis=0)
@@ -796,6 +794,8 @@ AUXILIARY_QUANTITIES = ("primary_depth", "primary_normal", "diffuse_albedo", "se
 #: shading normal; ``depth``, ``hits``: the camera hit's depth and 1 (0 for a miss); ``nearest``, ``farthest``:
 #: the camera hit's depth (``inf`` for a miss); ``shortest``: the diffuse-lobe secondary ray's length (``inf``
 #: otherwise).
+#: Each reduction as the numpy ufunc that merges two partial results, and its identity.
+REDUCTIONS = {"sum": (np.add, 0.0), "min": (np.minimum, np.inf), "max": (np.maximum, -np.inf)}
 PIXEL_STATISTICS = {"rgb": "sum", "rgb_squared": "sum", "diffuse_rgb": "sum", "albedo": "sum", "normal": "sum",
                     "depth": "sum", "hits": "sum", "nearest": "min", "farthest": "max", "shortest": "min"}
 
@@ -851,20 +851,22 @@ def _lanes(count, spp, seed, *, first=0, stream=0, items=None):
     else:
         item = dr.gather(mi.UInt32, items, index // samples_per_item)
     sample_index = index % samples_per_item
+    return item, _seeded_generator(item, sample_index, seed, stream), lanes
+
+
+def _seeded_generator(item, sample_index, seed, stream):
+    """The PCG32 of each lane, seeded with a TEA hash of (item, sample index, seed) on ``stream``."""
     seed_value = dr.opaque(mi.UInt32, int(seed))
     generator = mi.PCG32()
     generator.seed(mi.sample_tea_64(item, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value) + stream)
-    return item, generator, lanes
+    return generator
 
 
 def _explicit_lanes(items, sample_indices, seed, *, stream=0):
     """Lanes for explicit (item, sample index) pairs, seeded exactly as :func:`_lanes` seeds them."""
     item = mi.UInt32(np.ascontiguousarray(items, dtype=np.uint32))
     sample_index = mi.UInt32(np.ascontiguousarray(sample_indices, dtype=np.uint32))
-    seed_value = dr.opaque(mi.UInt32, int(seed))
-    generator = mi.PCG32()
-    generator.seed(mi.sample_tea_64(item, (sample_index << 16) ^ seed_value), mi.UInt64(seed_value) + stream)
-    return item, generator
+    return item, _seeded_generator(item, sample_index, seed, stream)
 
 
 def _in_pixel(pixel, uniform, size):
