@@ -1,7 +1,5 @@
 """The gradient-domain solvers of :mod:`sparselt.recovery.poisson` (issue 23, first part)."""
 
-import time
-
 import numpy as np
 import pytest
 import scipy.sparse as sparse
@@ -99,9 +97,8 @@ def test_bad_input_is_refused(arguments, message):
         screened_poisson(given.pop("primal"), given.pop("gradient_x"), given.pop("gradient_y"), **given)
 
 
-def test_l2_at_512_squared_runs():
-    """The issue's 0.1 s at 512^2 is a benchmark target, not asserted here: this only checks it runs at that size."""
+def test_l2_at_512_squared_recovers_the_image():
+    """The issue's size (its 0.1 s target is measured by hand, never asserted here): exact inputs, exact output."""
     image = _image(10, (512, 512, 3))
-    start = time.perf_counter()
     result = screened_poisson(image, *forward_differences(image))
-    assert time.perf_counter() - start >= 0 and result.image.shape == image.shape
+    assert np.max(np.abs(result.image - image)) < 1e-9
