@@ -102,3 +102,17 @@ def test_l2_at_512_squared_recovers_the_image():
     image = _image(10, (512, 512, 3))
     result = screened_poisson(image, *forward_differences(image))
     assert np.max(np.abs(result.image - image)) < 1e-9
+
+
+def test_l1_iterations_do_not_depend_on_the_image_scale():
+    """The penalty is in units of the data: scaling every input by s scales the result by s, same iterations."""
+    rng = np.random.default_rng(11)
+    image = _image(12, (16, 18))
+    noisy = image + 0.1 * rng.standard_normal(image.shape)
+    gradients = [g + 0.1 * rng.standard_normal(g.shape) for g in forward_differences(image)]
+    one = screened_poisson_l1(noisy, *gradients)
+    scaled = screened_poisson_l1(1000.0 * noisy, *[1000.0 * g for g in gradients])
+    assert one.iterations == scaled.iterations
+    np.testing.assert_allclose(scaled.image, 1000.0 * one.image, rtol=1e-8, atol=1e-8)
+    with pytest.raises(ValueError, match="start must be 'primal' or 'l2'"):
+        screened_poisson_l1(noisy, *gradients, start="zero")

@@ -32,6 +32,7 @@ import time
 
 import numpy as np
 
+from ..rendering.mitsuba_backend import GRADIENT_SHIFTS
 from .base import TIME_PHASES, MethodResult
 from .options import resolve_options
 
@@ -140,6 +141,12 @@ class SampleCountingScene:
     def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, lanes=None):
         self.path_samples += self._pixels() * int(spp) if lanes is None else int(np.size(lanes[0]))
         return self._scene.sample_pixel_statistics(layout, grid_shape, seed, names, spp=spp, lanes=lanes)
+
+    def sample_gradients(self, layout, grid_shape, spp, seed, *, offsets=4):
+        width, height = self._scene.width, self._scene.height
+        offset_paths = sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS.get(offsets, ()))
+        self.path_samples += int(spp) * (width * height + offset_paths)
+        return self._scene.sample_gradients(layout, grid_shape, spp, seed, offsets=offsets)
 
     def render_estimator(self, layout, spp, seed):
         self.path_samples += self._pixels() * int(spp)

@@ -227,6 +227,7 @@ def _load_builtin():
         from . import guided  # noqa: F401
         from . import wedge_cosamp  # noqa: F401
         from . import axis_aligned  # noqa: F401
+        from . import gradient_domain  # noqa: F401
     if not _STATE["entry_points"]:
         _STATE["entry_points"] = True
         for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):

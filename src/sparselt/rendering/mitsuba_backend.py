@@ -555,29 +555,12 @@ class MitsubaScene:
 
     def _pixel_lanes(self, layout, grid_shape, spp, seed, first_pixel, pixel_count, film_size, lanes):
         """The PSS vectors of pixel samples (see :meth:`sample_pixels`): ``(pixel, samples, cell)`` per lane."""
-        film_width, film_height = film_size
         if lanes is None:
             pixel, generator, _ = _lanes(pixel_count, spp, seed, first=first_pixel)
         else:
             pixel, generator = _explicit_lanes(lanes[0], lanes[1], seed)
-        width = dr.opaque(mi.UInt32, film_width)
-        pixel_x, pixel_y = pixel % width, pixel // width
-        strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
-        axis_of = {name: position for position, name in enumerate(layout.axes)}
-        samples = {}
-        cell = mi.UInt32(0)
-        for name in layout.dimensions:
-            uniform = generator.next_float32()
-            if name == "x":
-                uniform = _in_pixel(pixel_x, uniform, film_width)
-            elif name == "y":
-                uniform = _in_pixel(pixel_y, uniform, film_height)
-            if name in axis_of:
-                position = axis_of[name]
-                resolution = dr.opaque(mi.Float, float(grid_shape[position]))
-                coordinate = dr.minimum(mi.UInt32(uniform * resolution), mi.UInt32(resolution) - 1)
-                cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
-            samples[name] = uniform
+        width = dr.opaque(mi.UInt32, film_size[0])
+        samples, cell = _pss_vector(layout, grid_shape, generator, pixel % width, pixel // width, film_size)
         return pixel, samples, cell
 
     def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, lanes=None):
@@ -644,6 +627,78 @@ class MitsubaScene:
                 result[owners] = operation.reduceat(per_lane, starts, axis=0)
             results[name] = result
         return results, nonfinite
+
+    def sample_gradients(self, layout, grid_shape, spp, seed, *, offsets=4):
+        """Gradient-domain path samples: every base sample replayed at the neighbouring pixels, in one kernel.
+
+        Base sample ``i`` of pixel ``p`` is :meth:`sample_pixels`' sample ``i``
+        of ``p`` (the same random numbers). Its offset paths replay those
+        numbers with the film position moved by exactly one pixel, to each
+        neighbour of :data:`GRADIENT_SHIFTS` ``[offsets]`` (the shift map of
+        primary sample space: a translation, Jacobian 1; Kettunen et al. 2015,
+        3 and 5.1 use the 4 neighbours). An offset landing outside the film is
+        not traced (counted 0). The base and offset paths of a pass are one
+        Dr.Jit launch (lane ``((pixel * (1 + offsets)) + shift) * n + sample``),
+        reduced per pixel and shift inside it: nothing per sample leaves it.
+
+        Parameters
+        ----------
+        layout : PathLayout
+        grid_shape : tuple of int
+            Signal grid (the cells are not used; the PSS vectors are those of
+            :meth:`sample_pixels`).
+        spp : int
+            Base samples per pixel.
+        seed : int
+        offsets : {4, 2}
+            Neighbours per base sample: ``+x, -x, +y, -y`` or ``+x, +y``.
+
+        Returns
+        -------
+        sums : ndarray, shape (height, width, 1 + offsets, 3), float64
+            Per base pixel: the sum over its ``spp`` base samples of the base
+            path's contribution (index 0) and of each offset path's (index
+            ``1 + k`` for shift ``k``); 0 for offsets outside the film.
+        nonfinite : int
+            Paths (base or offset, inside the film) whose value was NaN or
+            infinite, counted as 0.
+        """
+        if offsets not in GRADIENT_SHIFTS:
+            raise ValueError(f"offsets must be one of {sorted(GRADIENT_SHIFTS)}, got {offsets!r}")
+        spp = int(spp)
+        if spp < 1:
+            raise ValueError(f"spp must be >= 1, got {spp}")
+        shifts = ((0, 0),) + GRADIENT_SHIFTS[offsets]
+        paths_per_base = len(shifts)
+        width, height = self.width, self.height
+        pixels = width * height
+        per_launch = max(1, min(spp, GRADIENT_LANE_LIMIT // (pixels * paths_per_base)))
+        shift_x = mi.Int32([dx for dx, _ in shifts])
+        shift_y = mi.Int32([dy for _, dy in shifts])
+        outside_per_sample = sum(abs(dx) * height + abs(dy) * width for dx, dy in shifts)
+        sums = np.zeros((pixels * paths_per_base, 3))
+        nonfinite = 0
+        for first in range(0, spp, per_launch):
+            count = min(per_launch, spp - first)
+            index = dr.arange(mi.UInt32, pixels * paths_per_base * count)
+            samples_per_block = dr.opaque(mi.UInt32, count)
+            block = index // samples_per_block
+            shift = block % dr.opaque(mi.UInt32, paths_per_base)
+            pixel = block // dr.opaque(mi.UInt32, paths_per_base)
+            generator = _seeded_generator(pixel, index % samples_per_block + dr.opaque(mi.UInt32, first), seed, 0)
+            film_width = dr.opaque(mi.Int32, width)
+            target_x = mi.Int32(pixel % mi.UInt32(film_width)) + dr.gather(mi.Int32, shift_x, shift)
+            target_y = mi.Int32(pixel // mi.UInt32(film_width)) + dr.gather(mi.Int32, shift_y, shift)
+            inside = (target_x >= 0) & (target_x < film_width) & (target_y >= 0) & (target_y < dr.opaque(mi.Int32, height))
+            samples, _ = _pss_vector(layout, grid_shape, generator, mi.UInt32(dr.select(inside, target_x, 0)),
+                                     mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
+            value, finite = _zero_nonfinite(self._path_contribution(layout, samples), inside)
+            dr.eval(value, finite)
+            nonfinite += _count_false(finite) - count * outside_per_sample
+            reduced = [dr.block_sum(channel, count) for channel in (value.x, value.y, value.z)]
+            dr.eval(reduced)
+            sums += _stacked(reduced)
+        return sums.reshape(height, width, paths_per_base, 3), nonfinite
 
     def render_estimator(self, layout, spp, seed):
         """Path tracing of the kind's own estimator (every PSS dimension uniform), ``spp`` per pixel, in one kernel.
@@ -828,6 +883,8 @@ def _stacked(channels):
     return arrays[0] if len(arrays) == 1 else np.stack(arrays, axis=1)
 
 
+GRADIENT_SHIFTS = {4: ((1, 0), (-1, 0), (0, 1), (0, -1)), 2: ((1, 0), (0, 1))}  # (dx, dy) per offset path
+GRADIENT_LANE_LIMIT = 1 << 23  # lanes (base and offset paths) per gradient-domain launch
 GUIDED_STREAM = 0x9E37  # PCG32 stream of guided renders, apart from the signal and pixel-sample streams
 
 
@@ -867,6 +924,35 @@ def _explicit_lanes(items, sample_indices, seed, *, stream=0):
     item = mi.UInt32(np.ascontiguousarray(items, dtype=np.uint32))
     sample_index = mi.UInt32(np.ascontiguousarray(sample_indices, dtype=np.uint32))
     return item, _seeded_generator(item, sample_index, seed, stream)
+
+
+def _pss_vector(layout, grid_shape, generator, pixel_x, pixel_y, film_size):
+    """One PSS vector per lane from its PCG32, the image-plane dimensions jittered in film pixel ``(pixel_x, pixel_y)``.
+
+    Returns ``(samples, cell)``: name -> ``mi.Float`` for every dimension of
+    ``layout``, and the flat C-order grid cell of each lane. The random
+    numbers are drawn in ``layout.dimensions`` order whatever the pixel: a
+    lane seeded like another but given a neighbouring pixel replays its
+    numbers there (the gradient-domain shift, :meth:`MitsubaScene.sample_gradients`).
+    """
+    film_width, film_height = film_size
+    strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
+    axis_of = {name: position for position, name in enumerate(layout.axes)}
+    samples = {}
+    cell = mi.UInt32(0)
+    for name in layout.dimensions:
+        uniform = generator.next_float32()
+        if name == "x":
+            uniform = _in_pixel(pixel_x, uniform, film_width)
+        elif name == "y":
+            uniform = _in_pixel(pixel_y, uniform, film_height)
+        if name in axis_of:
+            position = axis_of[name]
+            resolution = dr.opaque(mi.Float, float(grid_shape[position]))
+            coordinate = dr.minimum(mi.UInt32(uniform * resolution), mi.UInt32(resolution) - 1)
+            cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
+        samples[name] = uniform
+    return samples, cell
 
 
 def _in_pixel(pixel, uniform, size):
