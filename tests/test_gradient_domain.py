@@ -51,7 +51,7 @@ def gradient_runs(scene, layout):
 
 
 def test_base_paths_are_the_pixel_samples_of_the_same_seed(scene, layout):
-    sums, nonfinite = scene.sample_gradients(layout, _grid(layout), 8, 7)
+    sums, _, nonfinite = scene.sample_gradients(layout, _grid(layout), 8, 7)
     values, _, _ = scene.sample_pixels(layout, _grid(layout), 8, 7)
     assert sums.shape == (SIZE, SIZE, 5, 3) and nonfinite == 0
     np.testing.assert_allclose(sums[..., 0, :] / 8, values.reshape(SIZE, SIZE, 8, 3).mean(axis=2), rtol=1e-5,
@@ -59,9 +59,9 @@ def test_base_paths_are_the_pixel_samples_of_the_same_seed(scene, layout):
 
 
 def test_offsets_outside_the_film_are_not_traced(scene, layout):
-    sums, _ = scene.sample_gradients(layout, _grid(layout), 4, 3)
+    sums, _, _ = scene.sample_gradients(layout, _grid(layout), 4, 3)
     assert not sums[:, -1, 1].any() and not sums[:, 0, 2].any() and not sums[-1, :, 3].any() and not sums[0, :, 4].any()
-    two, _ = scene.sample_gradients(layout, _grid(layout), 4, 3, offsets=2)
+    two, _, _ = scene.sample_gradients(layout, _grid(layout), 4, 3, offsets=2)
     np.testing.assert_allclose(two, sums[:, :, [0, 1, 3]], rtol=1e-6, atol=1e-7)  # the same replays, fewer of them
 
 
@@ -99,10 +99,21 @@ def _context(scene, layout):
                              resolution=(SIZE, SIZE), max_depth=DEPTH)
 
 
-def test_gradient_l2_is_unbiased(scene, layout, reference):
+def test_camera_emission_is_the_part_of_each_path_seen_directly(scene, layout):
+    sums, emission, _ = scene.sample_gradients(layout, _grid(layout), 4, 3)
+    assert np.all(emission >= 0) and np.all(emission <= sums + 1e-4)
+    lit = emission[..., 0, :].sum(axis=-1) > 0  # pixels that see the ceiling light
+    assert 0 < lit.mean() < 0.05
+    indirect = path_layout("indirect", 3)
+    _, none, _ = scene.sample_gradients(indirect, _grid(indirect), 2, 3)
+    assert not none.any()  # the kind counts no emission seen directly
+
+
+@pytest.mark.parametrize("direct_emission", ["primal", "gradient"])
+def test_gradient_l2_is_unbiased(scene, layout, reference, direct_emission):
     """The method's image over seeds: luminance within 1% and every pixel within 3 standard errors but a few."""
     method = get_method("gradient-l2")
-    context = _context(scene, layout)
+    context = _context(scene, layout).with_options(method.Options(direct_emission=direct_emission))
     runs = np.array([method.run(context, Budget(spp=16, seed=seed)).image for seed in range(32)], dtype=np.float64)
     mean, error, _ = reference
     ratio = luminance(runs.mean(axis=0)).mean() / luminance(mean).mean()
@@ -123,7 +134,7 @@ def test_gradient_l1_lowers_the_error_of_its_own_primal(scene, layout, reference
     l1, primal = [], []
     for seed in range(8):
         result = method.run(context, Budget(spp=4, seed=seed))
-        sums, _ = scene.sample_gradients(layout, _grid(layout), 4, seed)
+        sums, _, _ = scene.sample_gradients(layout, _grid(layout), 4, seed)
         l1.append(relative_mean_squared_error(result.image, mean))
         primal.append(relative_mean_squared_error(gradient_estimates(sums, 4)[0].astype(np.float32), mean))
         assert result.details["stop_reason"] in ("converged", "max_iterations")

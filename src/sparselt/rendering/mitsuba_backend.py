@@ -347,6 +347,8 @@ class MitsubaScene:
             self._record_primary(auxiliary, interaction, samples, layout)
         if layout.count_camera_emission:
             result += throughput * interaction.emitter(scene).eval(interaction, active)
+            if auxiliary is not None:
+                auxiliary["camera_emission"] = mi.Color3f(result)
 
         for index, plan in enumerate(layout.vertices, start=1):
             active &= interaction.is_valid()
@@ -398,6 +400,7 @@ class MitsubaScene:
         if layout.thin_lens:
             auxiliary["lens_u"] = samples["lens_u"]
             auxiliary["lens_v"] = samples["lens_v"]
+        auxiliary["camera_emission"] = mi.Color3f(dr.zeros(mi.Float, dr.width(depth)))
         # Defaults for quantities a path without a first bounce never sets.
         auxiliary["secondary_distance"] = dr.full(mi.Float, dr.inf, dr.width(depth))
         auxiliary["secondary_diffuse"] = dr.full(mi.Bool, False, dr.width(depth))
@@ -659,6 +662,10 @@ class MitsubaScene:
             Per base pixel: the sum over its ``spp`` base samples of the base
             path's contribution (index 0) and of each offset path's (index
             ``1 + k`` for shift ``k``); 0 for offsets outside the film.
+        camera_emission : ndarray, shape (height, width, 1 + offsets, 3), float64
+            The same sums of the part of each contribution that is emission
+            seen directly by the camera ray (0 where the layout does not count
+            it), reduced in the same launch.
         nonfinite : int
             Paths (base or offset, inside the film) whose value was NaN or
             infinite, counted as 0.
@@ -677,6 +684,7 @@ class MitsubaScene:
         shift_y = mi.Int32([dy for _, dy in shifts])
         outside_per_sample = sum(abs(dx) * height + abs(dy) * width for dx, dy in shifts)
         sums = np.zeros((pixels * paths_per_base, 3))
+        emission_sums = np.zeros((pixels * paths_per_base, 3))
         nonfinite = 0
         for first in range(0, spp, per_launch):
             count = min(per_launch, spp - first)
@@ -692,13 +700,18 @@ class MitsubaScene:
             inside = (target_x >= 0) & (target_x < film_width) & (target_y >= 0) & (target_y < dr.opaque(mi.Int32, height))
             samples, _ = _pss_vector(layout, grid_shape, generator, mi.UInt32(dr.select(inside, target_x, 0)),
                                      mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
-            value, finite = _zero_nonfinite(self._path_contribution(layout, samples), inside)
-            dr.eval(value, finite)
+            recorded = {}
+            value, finite = _zero_nonfinite(self._path_contribution(layout, samples, recorded), inside)
+            emission = dr.select(finite, recorded["camera_emission"], 0.0)
+            dr.eval(value, emission, finite)
             nonfinite += _count_false(finite) - count * outside_per_sample
             reduced = [dr.block_sum(channel, count) for channel in (value.x, value.y, value.z)]
-            dr.eval(reduced)
+            reduced_emission = [dr.block_sum(channel, count) for channel in (emission.x, emission.y, emission.z)]
+            dr.eval(reduced, reduced_emission)
             sums += _stacked(reduced)
-        return sums.reshape(height, width, paths_per_base, 3), nonfinite
+            emission_sums += _stacked(reduced_emission)
+        shape = (height, width, paths_per_base, 3)
+        return sums.reshape(shape), emission_sums.reshape(shape), nonfinite
 
     def render_estimator(self, layout, spp, seed):
         """Path tracing of the kind's own estimator (every PSS dimension uniform), ``spp`` per pixel, in one kernel.
@@ -839,9 +852,10 @@ class MitsubaScene:
 #: ``primary_normal`` (3): its shading normal; ``diffuse_albedo`` (3): its BSDF's diffuse reflectance;
 #: ``secondary_distance``: length of the ray sampled at the first vertex to its hit, ``inf`` for none;
 #: ``secondary_diffuse``: that ray was sampled from a diffuse lobe; ``lens_u``, ``lens_v``: the lens sample
-#: in primary sample space (thin lens only).
+#: in primary sample space (thin lens only); ``camera_emission`` (3): the part of the contribution that is
+#: emission seen directly by the camera ray (0 where the layout does not count it).
 AUXILIARY_QUANTITIES = ("primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance",
-                        "secondary_diffuse", "lens_u", "lens_v")
+                        "secondary_diffuse", "lens_u", "lens_v", "camera_emission")
 
 #: Per-pixel statistics :meth:`MitsubaScene.sample_pixel_statistics` reduces, and their reduction.
 #: ``rgb`` / ``rgb_squared``: the path contribution and its square; ``diffuse_rgb``: the contribution of samples
