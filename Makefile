@@ -34,6 +34,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/compare_overhead.py
 	$(BIN)/python benchmarks/filters.py
 	$(BIN)/python benchmarks/axis_aligned_overhead.py
+	$(BIN)/python benchmarks/gradient_domain.py
 	$(BIN)/python benchmarks/guided_throughput.py
 	$(BIN)/python benchmarks/distributed_sampling.py
 	$(BIN)/python benchmarks/sft_oracle.py

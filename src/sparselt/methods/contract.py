@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from ..rendering.mitsuba_backend import GRADIENT_SHIFTS
+from ..rendering.mitsuba_backend import GRADIENT_SHIFTS, gradient_paths
 from .base import TIME_PHASES, MethodResult
 from .options import resolve_options
 
@@ -144,8 +144,7 @@ class SampleCountingScene:
 
     def sample_gradients(self, layout, grid_shape, spp, seed, *, offsets=4):
         width, height = self._scene.width, self._scene.height
-        offset_paths = sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS.get(offsets, ()))
-        self.path_samples += int(spp) * (width * height + offset_paths)
+        self.path_samples += int(spp) * gradient_paths(width, height, offsets) if offsets in GRADIENT_SHIFTS else 0
         return self._scene.sample_gradients(layout, grid_shape, spp, seed, offsets=offsets)
 
     def render_estimator(self, layout, spp, seed):

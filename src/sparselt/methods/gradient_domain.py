@@ -73,7 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..recovery.poisson import DEFAULT_ALPHA, screened_poisson, screened_poisson_l1
-from ..rendering.mitsuba_backend import GRADIENT_SHIFTS
+from ..rendering.mitsuba_backend import GRADIENT_SHIFTS, gradient_paths
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .options import MethodOptions, option
 from .registry import register
@@ -180,9 +180,7 @@ class _GradientDomain(Method):
         with timer("reconstruction"):
             result = self.reconstruct(options, primal, gradient_x, gradient_y)
             image = result.image + gradient_estimates(emission, budget.spp)[0] if separate else result.image
-        shifts = GRADIENT_SHIFTS[options.offsets]
-        paths = budget.spp * ((1 + len(shifts)) * width * height
-                              - sum(abs(dx) * height + abs(dy) * width for dx, dy in shifts))
+        paths = budget.spp * gradient_paths(width, height, options.offsets)
         details = {"offsets": options.offsets, "alpha": options.alpha, "direct_emission": options.direct_emission,
                    "iterations": result.iterations,
                    "stop_reason": result.stop_reason, "nonfinite_samples": nonfinite,

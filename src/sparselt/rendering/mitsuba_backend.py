@@ -682,7 +682,7 @@ class MitsubaScene:
         per_launch = max(1, min(spp, GRADIENT_LANE_LIMIT // (pixels * paths_per_base)))
         shift_x = mi.Int32([dx for dx, _ in shifts])
         shift_y = mi.Int32([dy for _, dy in shifts])
-        outside_per_sample = sum(abs(dx) * height + abs(dy) * width for dx, dy in shifts)
+        outside_per_sample = paths_per_base * pixels - gradient_paths(width, height, offsets)
         sums = np.zeros((pixels * paths_per_base, 3))
         emission_sums = np.zeros((pixels * paths_per_base, 3))
         nonfinite = 0
@@ -899,6 +899,12 @@ def _stacked(channels):
 
 GRADIENT_SHIFTS = {4: ((1, 0), (-1, 0), (0, 1), (0, -1)), 2: ((1, 0), (0, 1))}  # (dx, dy) per offset path
 GRADIENT_LANE_LIMIT = 1 << 23  # lanes (base and offset paths) per gradient-domain launch
+
+
+def gradient_paths(width, height, offsets):
+    """Paths traced per base sample per pixel of a ``width`` x ``height`` film: every base path, and every offset
+    of :data:`GRADIENT_SHIFTS` ``[offsets]`` that lands inside the film (``5 w h - 2 (w + h)`` for 4 offsets)."""
+    return width * height + sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS[offsets])
 GUIDED_STREAM = 0x9E37  # PCG32 stream of guided renders, apart from the signal and pixel-sample streams
 
 
