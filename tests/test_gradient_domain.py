@@ -155,3 +155,10 @@ def test_bad_offsets_and_resolution_are_refused(scene, layout):
                                 resolution=(8, 8), max_depth=DEPTH)
     with pytest.raises(ValueError, match="film resolution 32x32"):
         get_method("gradient-l2").run(context, Budget(spp=1, seed=1))
+
+
+def test_an_offset_count_outside_the_choices_is_refused_before_sampling():
+    from sparselt.methods.options import resolve_options
+
+    with pytest.raises(ValueError, match=r"option gradient-l2.offsets must be one of 4, 2, got 3"):
+        resolve_options(get_method("gradient-l2").Options, {"offsets": "3"}, grid_shape=(8, 8), owner="gradient-l2")

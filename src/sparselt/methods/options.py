@@ -69,8 +69,8 @@ class Option:
         shape (a bound such as ``N / 2``), described by :attr:`maximum_text`.
     minimum_inclusive, maximum_inclusive : bool
         Whether the bounds themselves are allowed.
-    choices : tuple of str or None
-        Allowed values of a ``str`` option.
+    choices : tuple of str (or int) or None
+        Allowed values of a ``str`` (or ``int``) option.
     derive : callable or None
         ``derive(grid_shape)``: the default when it depends on the grid.
     default_text : str
@@ -105,7 +105,7 @@ class Option:
         if self.type is bool:
             return "true or false"
         if self.choices is not None:
-            return "one of " + ", ".join(self.choices)
+            return "one of " + ", ".join(_text(choice) for choice in self.choices)
         if self.type is str:
             return "any text"
         kind = "an integer" if self.type is int else "a finite number"
@@ -163,6 +163,8 @@ class Option:
             value = float(value)
             if not math.isfinite(value):
                 raise ValueError(f"{label} must be {self.allowed()}, got {value!r}")
+        if self.choices is not None and value not in self.choices:
+            raise ValueError(f"{label} must be {self.allowed()}, got {_text(value)}")
         maximum = self.maximum(tuple(grid_shape)) if callable(self.maximum) else self.maximum
         low = self.minimum is not None and (value < self.minimum or (value == self.minimum and not self.minimum_inclusive))
         high = maximum is not None and (value > maximum or (value == maximum and not self.maximum_inclusive))
