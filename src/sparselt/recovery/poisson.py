@@ -55,14 +55,14 @@ class PoissonResult:
         ADMM iterations (0 for the direct L2 solve).
     stop_reason : str
         ``'exact'`` (L2), ``'converged'`` or ``'max_iterations'``.
-    residual_history : tuple of float
+    change_history : tuple of float
         Per iteration, the image's relative change ``||I_k - I_(k-1)|| / ||I_k||`` (L1 only).
     """
 
     image: np.ndarray
     iterations: int
     stop_reason: str
-    residual_history: tuple = ()
+    change_history: tuple = ()
 
 
 def _check(primal, gradient_x, gradient_y, alpha):
@@ -152,7 +152,7 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
     tolerance : float
         Stop when an iteration moves the image by less than ``tolerance``
         times its norm, ``||I_k - I_(k-1)|| < tolerance ||I_k||`` (the
-        history of this ratio is the result's ``residual_history``).
+        history of this ratio is the result's ``change_history``).
     max_iterations : int
         Stop after this many iterations in any case.
     start : {'primal', 'l2'}
@@ -204,4 +204,4 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
         if history[-1] < tolerance:
             stop = "converged"
             break
-    return PoissonResult(image=image, iterations=iterations, stop_reason=stop, residual_history=tuple(history))
+    return PoissonResult(image=image, iterations=iterations, stop_reason=stop, change_history=tuple(history))

@@ -702,14 +702,18 @@ class MitsubaScene:
                                      mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
             recorded = {}
             value, finite = _zero_nonfinite(self._path_contribution(layout, samples, recorded), inside)
-            emission = dr.select(finite, recorded["camera_emission"], 0.0)
-            dr.eval(value, emission, finite)
+            # A layout that counts no emission seen directly leaves its sums 0 without reducing zeros.
+            channels = [value.x, value.y, value.z]
+            if layout.count_camera_emission:
+                emission = dr.select(finite, recorded["camera_emission"], 0.0)
+                channels += [emission.x, emission.y, emission.z]
+            dr.eval(finite, *channels)
             nonfinite += _count_false(finite) - count * outside_per_sample
-            reduced = [dr.block_sum(channel, count) for channel in (value.x, value.y, value.z)]
-            reduced_emission = [dr.block_sum(channel, count) for channel in (emission.x, emission.y, emission.z)]
-            dr.eval(reduced, reduced_emission)
-            sums += _stacked(reduced)
-            emission_sums += _stacked(reduced_emission)
+            reduced = [dr.block_sum(channel, count) for channel in channels]
+            dr.eval(reduced)
+            sums += _stacked(reduced[:3])
+            if layout.count_camera_emission:
+                emission_sums += _stacked(reduced[3:])
         shape = (height, width, paths_per_base, 3)
         return sums.reshape(shape), emission_sums.reshape(shape), nonfinite
 
