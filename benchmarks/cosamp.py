@@ -2,7 +2,7 @@
 
 Cases: exactly K-sparse real signal with 10% and 25% of cells sampled; the
 10% case with 1% noise on the samples; a compressible signal (power-law
-coefficient magnitudes). float32, all cores. For each case prints total time,
+coefficient magnitudes). float32, all cores, kernels warmed first. For each case prints total time,
 iterations, relative error, peak memory (growth of the RSS high-water mark, reset before each
 case), the number of FFTs, and total time / (FFTs x one FFT's time measured in
 this run): how close recovery comes to its FFT floor.
@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from sparselt import kernels
 from sparselt.fourier import fft
 from sparselt.measurement import reset_peak, status_bytes
 from sparselt.fourier.sparse import random_sparse_fourier
@@ -62,6 +63,7 @@ def main():
     size = math.prod(shape)
     count = int(size * arguments.sparsity_ratio)
     rng = np.random.default_rng(arguments.seed)
+    kernels.warm_up()  # the numba loops between the FFTs compile (or load from numba's cache) outside the timing
     one_fft = fft_floor(shape)
     print(f"N = {size} ({'x'.join(map(str, shape))}), K = {count}, float32; one FFT = {one_fft * 1e3:.1f} ms")
     print(f"{'case':30s} {'time s':>7s} {'iter':>4s} {'rel. error':>10s} {'peak MB':>8s} {'FFTs':>5s} {'time/FFT floor':>14s}  phases")

@@ -188,7 +188,7 @@ class SparseFourier:
         dense[self.indices] = self.values
         return dense.reshape(self.shape + self.channel_shape)
 
-    def to_signal(self, dtype=None):
+    def to_signal(self, dtype=None, *, work=None, out=None):
         """The signal: ``numpy.fft.ifftn`` of the spectrum over the signal axes (real part if ``real``).
 
         Parameters
@@ -197,17 +197,33 @@ class SparseFourier:
             Precision of a ``real`` signal without channels (default: that of
             the values). Such a signal is synthesised from its half spectrum by
             one real inverse FFT, in half the memory and time of a complex one.
+        work, out : ndarray, optional
+            For that real synthesis: an all-zero half spectrum (shape
+            ``shape[:-1] + (shape[-1] // 2 + 1,)``, the complex type of
+            ``dtype``) that the transform may destroy, and the array of
+            ``shape`` and ``dtype`` to write the signal into (the operator's
+            buffers, :meth:`PartialFourier.release_buffers`: no fresh
+            signal-size pages to fault in). The result is the same.
         """
         axes = tuple(range(len(self.shape)))
         if self.real and not self.channel_shape:
             real_dtype = np.dtype(dtype) if dtype is not None else np.dtype(self.values.real.dtype)
             last = self.shape[-1]
             half_shape = self.shape[:-1] + (last // 2 + 1,)
+            complex_dtype = np.dtype(np.complex64 if real_dtype == np.float32 else np.complex128)
             coordinates = np.unravel_index(self.indices, self.shape)
             kept = coordinates[-1] <= last // 2  # the mirror of an interior entry is implicit in c2r
-            half = np.zeros(half_shape, dtype=np.complex64 if real_dtype == np.float32 else np.complex128)
+            if work is None:
+                half = np.zeros(half_shape, dtype=complex_dtype)
+            elif work.shape != half_shape or work.dtype != complex_dtype:
+                raise ValueError(f"work must be a zeroed {complex_dtype} array of shape {half_shape}, "
+                                 f"got {work.dtype} {work.shape}")
+            else:
+                half = work
+            if out is not None and (out.shape != self.shape or out.dtype != real_dtype):
+                raise ValueError(f"out must be a {real_dtype} array of shape {self.shape}, got {out.dtype} {out.shape}")
             half[tuple(c[kept] for c in coordinates)] = self.values[kept]
-            return fft.irfftn(half, last, axes=axes, overwrite_input=True)
+            return fft.irfftn(half, last, axes=axes, out=out, overwrite_input=True)
         signal = fft.ifftn(self.to_spectrum(), axes=axes)
         return np.ascontiguousarray(signal.real) if self.real else signal
 

@@ -62,6 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
 from ..analysis.threshold import check_gamma
 from ..images import luminance
 from ..operators.partial_fourier import PartialFourier
@@ -150,9 +151,9 @@ def reconstruct_luminance(cells, means, grid_shape, *, gamma, sparsity, dtype=np
     operator = PartialFourier(grid_shape, cells, real=True, dtype=dtype, threads=threads)
     result = cosamp(operator, mapped, int(sparsity), stagnation=STAGNATION, patience=PATIENCE,
                     conjugate_gradient_steps=CONJUGATE_GRADIENT_STEPS, allowed=allowed)
-    signal = result.estimate.to_signal(dtype=dtype)
-    np.maximum(signal, 0, out=signal)  # t ** (1 / gamma) is undefined below 0
-    np.power(signal, np.dtype(dtype).type(1.0 / gamma), out=signal)
+    work, grid = operator.release_buffers()  # in memory already: no fresh pages to fault in
+    signal = result.estimate.to_signal(dtype=dtype, work=work, out=grid.reshape(grid_shape))
+    kernels.clamped_power(signal, 1.0 / gamma)  # t ** (1 / gamma) is undefined below 0: clamp first
     signal *= np.dtype(dtype).type(maximum)
     return signal, result
 
@@ -182,8 +183,9 @@ class _CosampMethod(Method):
     Options = CosampOptions
 
     def warm_up(self, context):
-        # The renderer is the only part with kernels to compile; CoSaMP is numpy and FFTs.
+        # The renderer's kernels and the numba loops around CoSaMP's FFTs compile here, not in a timed run.
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED))
+        kernels.warm_up()
 
     def run(self, context, budget):
         options = self.options_of(context)

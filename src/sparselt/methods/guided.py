@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
 from ..filters import cross_bilateral
 from ..guiding import ImportanceMap
 from ..images import luminance
@@ -101,6 +102,7 @@ class _GuidedMethod(Method):
 
     def warm_up(self, context):
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), resolution=tuple(context.grid_shape[:2]))
+        kernels.warm_up()  # the numba loops of the map's CoSaMP reconstruction
         uniform = ImportanceMap(np.ones(context.grid_shape), defensive=1.0)
         render_with_map(context, uniform, Budget(spp=1, seed=WARM_UP_SEED), self.options_of(context).mode)
 

@@ -111,6 +111,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
 from ..filters.axis_aligned import circle_of_confusion, depth_range
 from ..fourier import fft
 from ..images import luminance
@@ -435,6 +436,7 @@ class WedgeCosamp(Method):
     def warm_up(self, context):
         check_lens(context)
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), auxiliary=(DEPTH,))
+        kernels.warm_up()  # the numba loops around CoSaMP's FFTs
 
     def run(self, context, budget):
         options = self.options_of(context)

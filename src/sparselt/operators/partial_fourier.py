@@ -37,6 +37,7 @@ import numpy as np
 from ..fourier import fft
 from ..fourier.hermitian import partner_indices
 from ..fourier.sparse import SparseFourier, check_shape
+from .. import kernels
 from .base import LinearOperator
 
 DTYPES = {np.dtype(np.float32): np.dtype(np.complex64), np.dtype(np.float64): np.dtype(np.complex128)}
@@ -149,6 +150,7 @@ class PartialFourier(LinearOperator):
         self._spectrum = np.zeros(self.coefficient_shape, dtype=self.coefficient_dtype)  # zero except on a support
         self._grid_out = np.empty(self.grid_shape, dtype=self.sample_dtype)  # synthesis output
         self._spectrum_out = np.empty(self.coefficient_shape, dtype=self.coefficient_dtype)  # analysis output
+        self._energy = None  # proxy energy, allocated on first use
         if self.real:
             self._plane_fixes()
 
@@ -219,11 +221,11 @@ class PartialFourier(LinearOperator):
             # The transform may destroy its input; zeroing the whole buffer is cheaper than the copy it saves.
             grid = fft.irfftn(self._spectrum, self.grid_shape[-1], axes=self._axes, out=self._grid_out,
                               threads=self.threads, overwrite_input=True)
-            self._spectrum.fill(0)
+            kernels.zero(self._spectrum)
         else:
             grid = fft.ifftn(self._spectrum, axes=self._axes, norm="ortho", out=self._grid_out, threads=self.threads)
             spectrum[support] = 0
-        return grid.reshape(-1)[self.indices]
+        return kernels.gather(grid.reshape(-1), self.indices, np.empty(self.output_size, dtype=self.sample_dtype))
 
     def transform_samples(self, samples):
         """The unscaled spectrum of the sampled cells holding ``samples``.
@@ -233,7 +235,7 @@ class PartialFourier(LinearOperator):
         samples = np.asarray(samples)
         if samples.shape != (self.output_size,):
             raise ValueError(f"expected {self.output_size} samples, got shape {samples.shape}")
-        self._grid.reshape(-1)[self.indices] = samples
+        kernels.scatter(self._grid.reshape(-1), self.indices, samples.astype(self.sample_dtype, copy=False))
         self.transforms += 1
         if self.real:
             return fft.rfftn(self._grid, axes=self._axes, out=self._spectrum_out, threads=self.threads)
@@ -248,9 +250,18 @@ class PartialFourier(LinearOperator):
         return values if analysis is None else values * analysis
 
     def proxy_energy(self, spectrum):
-        """``|A^* r|^2`` on every coefficient entry, up to one common factor, from :meth:`transform_samples`."""
-        energy = np.square(spectrum.real)
-        energy += np.square(spectrum.imag)
+        """``|A^* r|^2`` on every coefficient entry, up to one common factor, from :meth:`transform_samples`.
+
+        Returns a buffer that the next call overwrites: copy it to keep it.
+        """
+        spectrum = np.asarray(spectrum)
+        if spectrum.dtype == self.coefficient_dtype and spectrum.size == self.input_size:
+            if self._energy is None:
+                self._energy = np.empty(self.input_size, dtype=np.finfo(self.coefficient_dtype).dtype)
+            energy = kernels.squared_magnitude(np.ascontiguousarray(spectrum), self._energy)
+        else:
+            energy = np.square(spectrum.real)
+            energy += np.square(spectrum.imag)
         if self.real:
             flat = energy.reshape(-1)
             flat[self._noncanonical] = 0.0
@@ -275,6 +286,22 @@ class PartialFourier(LinearOperator):
         result = self.adjoint_on(every, None, spectrum)
         result[self._noncanonical] = 0
         return result
+
+    def release_buffers(self):
+        """Hand over the operator's signal-size work arrays; the operator cannot be used afterwards.
+
+        Returns ``(spectrum, grid)``: an all-zero half spectrum (complex) and a
+        grid of the sample precision, already in memory, for
+        :meth:`SparseFourier.to_signal`'s ``work`` and ``out`` (the synthesis
+        of the estimate, the last step of a reconstruction).
+        """
+        if self._spectrum is None:
+            raise RuntimeError("this PartialFourier's buffers were released; build a new operator")
+        if not self.real:
+            raise ValueError("release_buffers serves the real synthesis; a complex operator has no half spectrum")
+        spectrum, grid = self._spectrum, self._grid_out
+        self._spectrum = self._grid_out = self._grid = self._spectrum_out = self._energy = None
+        return spectrum, grid
 
     # -- results -------------------------------------------------------------------
 

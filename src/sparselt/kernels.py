@@ -1,0 +1,168 @@
+"""Parallel loops over signal-size arrays (numba): the memory passes between a reconstruction's FFTs.
+
+Between its FFTs a CoSaMP iteration (:class:`~sparselt.operators.partial_fourier.PartialFourier`)
+moves signal-size data four ways: it zeroes the spectrum buffer that the
+inverse FFT destroyed, gathers the grid at the sampled cells, scatters the
+residual into the grid and forms the proxy's energy ``|A^* r|^2`` on every
+coefficient; after recovery the inverse gamma raises the whole grid to
+``1 / gamma``. NumPy does each on one core, ``np.square`` allocates (and
+page-faults) a new signal-size array per call, and ``np.power`` takes a slow
+path for every zero (half of a clamped reconstruction). On 250x250x16x16
+these passes cost as much as half the FFTs' time (issue 24's profile). Each
+loop here runs on every core into a buffer the caller owns and computes
+exactly what the NumPy expression computes (the same float operations, no
+fast-math; the power itself is still NumPy's), so results are bit-identical.
+
+Kernels compile on first use and are cached on disk by numba; :func:`warm_up`
+compiles them all (the comparison's warm-up calls it, so that no timed run
+pays compilation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_KERNELS = None
+
+#: Below this many elements a loop stays in NumPy (thread start-up would cost more than it saves).
+PARALLEL_MINIMUM = 1 << 16
+
+
+def _compiled():
+    """The numba kernels, compiled on first use (and cached on disk by numba)."""
+    global _KERNELS
+    if _KERNELS is None:
+        import numba
+
+        @numba.njit(parallel=True, cache=True)
+        def gather(source, indices, out):
+            for position in numba.prange(indices.size):
+                out[position] = source[indices[position]]
+
+        @numba.njit(parallel=True, cache=True)
+        def scatter(target, indices, values):
+            for position in numba.prange(indices.size):
+                target[indices[position]] = values[position]
+
+        @numba.njit(parallel=True, cache=True)
+        def zero(array):
+            for position in numba.prange(array.size):
+                array[position] = 0
+
+        @numba.njit(parallel=True, cache=True)
+        def squared_magnitude(real, imaginary, out):
+            for position in numba.prange(out.size):
+                out[position] = real[position] * real[position] + imaginary[position] * imaginary[position]
+
+        @numba.njit(parallel=True, cache=True)
+        def mark_non_positive(values, marks):
+            for position in numba.prange(values.size):
+                value = values[position]
+                marked = value <= 0
+                marks[position] = marked
+                values[position] = 1 if marked else value
+
+        @numba.njit(parallel=True, cache=True)
+        def zero_marked(values, marks):
+            for position in numba.prange(values.size):
+                values[position] = 0 if marks[position] else values[position]
+
+        _KERNELS = {"gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
+                    "mark_non_positive": mark_non_positive, "zero_marked": zero_marked}
+    return _KERNELS
+
+
+def gather(source, indices, out):
+    """``out[:] = source[indices]`` for flat arrays; returns ``out``."""
+    if indices.size < PARALLEL_MINIMUM:
+        np.take(source, indices, out=out)
+    else:
+        _compiled()["gather"](source, indices, out)
+    return out
+
+
+def scatter(target, indices, values):
+    """``target[indices] = values`` for a flat ``target`` and distinct ``indices``."""
+    if indices.size < PARALLEL_MINIMUM:
+        target[indices] = values
+    else:
+        _compiled()["scatter"](target, indices, values)
+
+
+def zero(array):
+    """``array.fill(0)`` for a contiguous array, on every core."""
+    flat = array.reshape(-1)
+    if np.iscomplexobj(flat):
+        flat = flat.view(flat.real.dtype)
+    if flat.size < PARALLEL_MINIMUM:
+        flat.fill(0)
+    else:
+        _compiled()["zero"](flat)
+
+
+def squared_magnitude(spectrum, out):
+    """``out[:] = spectrum.real ** 2 + spectrum.imag ** 2`` (each rounded as NumPy rounds it); returns ``out``.
+
+    ``spectrum`` is a contiguous complex array, ``out`` a contiguous real array
+    of its size and precision.
+    """
+    flat = spectrum.reshape(-1)
+    target = out.reshape(-1)
+    if flat.size < PARALLEL_MINIMUM:
+        np.square(flat.real, out=target)
+        target += np.square(flat.imag)
+    else:
+        _compiled()["squared_magnitude"](flat.real, flat.imag, target)
+    return out
+
+
+def clamped_power(values, exponent):
+    """``values[:] = np.maximum(values, 0) ** exponent`` in place, for a positive ``exponent``; returns ``values``.
+
+    The inverse gamma of eq. 7.1 (thesis 7.1) on a reconstruction. Entries
+    ``<= 0`` are set to 1 before NumPy's power and to 0 after it, which is
+    what the power gives them; NaN stays NaN. The power of every other entry
+    is NumPy's own, so the result is bit-identical to the expression's.
+    """
+    flat = values.reshape(-1)
+    exponent = flat.dtype.type(exponent)
+    if not exponent > 0:
+        raise ValueError(f"exponent must be positive, got {exponent}")
+    if flat.size < PARALLEL_MINIMUM:
+        np.maximum(flat, 0, out=flat)
+        np.power(flat, exponent, out=flat)
+        return values
+    kernels = _compiled()
+    marks = np.empty(flat.size, dtype=np.bool_)
+    kernels["mark_non_positive"](flat, marks)
+    np.power(flat, exponent, out=flat)
+    kernels["zero_marked"](flat, marks)
+    return values
+
+
+_WARM = False
+
+
+def warm_up():
+    """Compile (or load from numba's cache) every kernel for the types sparselt uses; free after the first call."""
+    global _WARM
+    if _WARM:
+        return
+    size = PARALLEL_MINIMUM
+    kernels = _compiled()
+    indices = np.arange(size, dtype=np.int64)
+    for real, complex_ in ((np.float32, np.complex64), (np.float64, np.complex128)):
+        source = np.zeros(size, dtype=real)
+        out = np.empty(size, dtype=real)
+        kernels["gather"](source, indices, out)
+        kernels["scatter"](source, indices, out)
+        kernels["zero"](source)
+        spectrum = np.zeros(size, dtype=complex_)
+        kernels["squared_magnitude"](spectrum.real, spectrum.imag, out)
+        marks = np.empty(size, dtype=np.bool_)
+        kernels["mark_non_positive"](out, marks)
+        kernels["zero_marked"](out, marks)
+    for complex_ in (np.complex64, np.complex128):  # the complex operator's grid
+        kernels["scatter"](np.zeros(size, dtype=complex_), indices, np.zeros(size, dtype=complex_))
+        kernels["gather"](np.zeros(size, dtype=complex_), indices, np.empty(size, dtype=complex_))
+    _WARM = True

@@ -1,0 +1,84 @@
+"""The numba loops equal the NumPy expressions they replace, bit for bit (issue 24: no result may change)."""
+
+import numpy as np
+import pytest
+
+from sparselt import kernels
+from sparselt.fourier.sparse import random_sparse_fourier
+from sparselt.operators import PartialFourier
+from sparselt.recovery.cosamp import cosamp
+
+SIZES = (1000, kernels.PARALLEL_MINIMUM * 3 + 17)  # the NumPy path and the parallel one
+
+
+@pytest.mark.parametrize("size", SIZES)
+@pytest.mark.parametrize("dtype", [np.float32, np.float64, np.complex64])
+def test_gather_and_scatter_equal_fancy_indexing(size, dtype):
+    rng = np.random.default_rng(size)
+    source = rng.standard_normal(4 * size).astype(dtype)
+    indices = np.sort(rng.choice(source.size, size, replace=False))
+    out = np.empty(size, dtype=dtype)
+    assert kernels.gather(source, indices, out) is out
+    assert np.array_equal(out, source[indices])
+    target = np.zeros(4 * size, dtype=dtype)
+    expected = target.copy()
+    expected[indices] = out
+    kernels.scatter(target, indices, out)
+    assert np.array_equal(target, expected)
+
+
+@pytest.mark.parametrize("size", SIZES)
+def test_zero_clears_a_complex_array(size):
+    array = (np.arange(size) + 1j).astype(np.complex64).reshape(-1, 1)
+    kernels.zero(array)
+    assert not np.any(array)
+
+
+@pytest.mark.parametrize("size", SIZES)
+@pytest.mark.parametrize("dtype", [np.complex64, np.complex128])
+def test_squared_magnitude_rounds_as_numpy(size, dtype):
+    rng = np.random.default_rng(1)
+    spectrum = (rng.standard_normal(size) + 1j * rng.standard_normal(size)).astype(dtype) * 1e3
+    expected = np.square(spectrum.real)
+    expected += np.square(spectrum.imag)
+    out = np.empty(size, dtype=expected.dtype)
+    assert np.array_equal(kernels.squared_magnitude(spectrum, out), expected)
+
+
+@pytest.mark.parametrize("size", SIZES)
+@pytest.mark.parametrize("exponent", [4.0, 2.0, 1 / 0.3])
+def test_clamped_power_equals_maximum_then_power(size, exponent):
+    rng = np.random.default_rng(2)
+    values = rng.standard_normal(size).astype(np.float32)
+    values[::7] = 0.0
+    values[::11] = -0.0
+    values[5] = np.nan
+    values[6] = 1e-30  # a power that underflows to a subnormal
+    expected = np.power(np.maximum(values, 0), np.float32(exponent))
+    result = kernels.clamped_power(values.copy(), exponent)
+    assert np.array_equal(result, expected, equal_nan=True)
+    assert np.array_equal(np.signbit(result), np.signbit(expected))
+
+
+def test_clamped_power_rejects_a_non_positive_exponent():
+    with pytest.raises(ValueError, match="exponent must be positive"):
+        kernels.clamped_power(np.ones(4, dtype=np.float32), 0.0)
+
+
+def test_released_buffers_synthesise_the_estimate_exactly_and_retire_the_operator():
+    shape = (24, 20, 8, 6)
+    rng = np.random.default_rng(3)
+    signal = random_sparse_fourier(shape, 40, rng, real=True).to_signal().astype(np.float32)
+    cells = np.sort(rng.choice(signal.size, signal.size // 3, replace=False))
+    operator = PartialFourier(shape, cells, dtype=np.float32)
+    result = cosamp(operator, signal.reshape(-1)[cells], 40)
+    expected = result.estimate.to_signal(dtype=np.float32)
+    work, grid = operator.release_buffers()
+    assert not np.any(work)
+    synthesised = result.estimate.to_signal(dtype=np.float32, work=work, out=grid)
+    assert synthesised is grid
+    assert np.array_equal(synthesised, expected)
+    with pytest.raises(RuntimeError, match="released"):
+        operator.release_buffers()
+    with pytest.raises(ValueError, match="work must be a zeroed"):
+        result.estimate.to_signal(dtype=np.float32, work=np.zeros(3, dtype=np.complex64))
