@@ -122,3 +122,21 @@ def test_mixed_conditionals_interpolate_between_map_and_uniform():
     mixed = mixed_conditionals(values, np.array([0.5, 1.0]))
     np.testing.assert_allclose(mixed[0, 0], [0.5 / 4 + 0.5, 0.5 / 4, 0.5 / 4, 0.5 / 4])
     np.testing.assert_allclose(mixed[1, 0], [0.25, 0.25, 0.25, 0.25])
+
+
+def test_global_mode_runs_every_sample_once_grouped_by_film_pixel(path_context):
+    """The global render's lane order is a permutation of the samples, sorted by the film pixel each lands in."""
+    scene, layout = path_context.scene, path_context.layout
+    importance = ImportanceMap(peaky(path_context.grid_shape, 5), defensive=0.1)
+    spp, seed = 4, 3
+    tables = importance.level_tables()
+    order = np.asarray(scene._global_order(layout, importance.shape, tables, spp, seed))
+    lanes = scene.width * scene.height * spp
+    assert np.array_equal(np.sort(order), np.arange(lanes))
+    mi, dr = mitsuba_backend.mi, mitsuba_backend.dr
+    _, generator, _ = mitsuba_backend._lanes(scene.width * scene.height, spp, seed, stream=mitsuba_backend.GUIDED_STREAM)
+    uniforms = {name: generator.next_float32() for name in layout.dimensions}
+    mitsuba_backend._warp_axes(importance.shape, tables, uniforms, layout.axes, mi.UInt32(0), 0)  # every level
+    landing = np.asarray(scene._film_pixel(uniforms))
+    assert np.all(np.diff(landing[order].astype(np.int64)) >= 0)
+    assert np.unique(landing).size > scene.width * scene.height // 2  # the samples spread over the film

@@ -82,3 +82,12 @@ def test_released_buffers_synthesise_the_estimate_exactly_and_retire_the_operato
         operator.release_buffers()
     with pytest.raises(ValueError, match="work must be a zeroed"):
         result.estimate.to_signal(dtype=np.float32, work=np.zeros(3, dtype=np.complex64))
+
+
+def test_counting_order_is_the_stable_argsort():
+    keys = np.random.default_rng(4).integers(0, 300, 100_000).astype(np.uint32)
+    order = kernels.counting_order(keys, 300)
+    assert order.dtype == np.uint32
+    assert np.array_equal(order, np.argsort(keys, kind="stable"))
+    with pytest.raises(ValueError, match="below bins=300"):
+        kernels.counting_order(np.array([300], dtype=np.uint32), 300)

@@ -30,6 +30,7 @@ import time
 
 import numpy as np
 
+from .. import kernels
 from .scenes import Camera, Transform
 
 DEFAULT_VARIANT = "llvm_ad_rgb"
@@ -765,7 +766,10 @@ class MitsubaScene:
             Samples that were NaN or infinite (counted as 0).
         """
         pixels = self.width * self.height
-        pixel, generator, _ = _lanes(pixels, spp, seed, stream=GUIDED_STREAM)
+        # Global mode: the lanes run grouped by the film pixel they land in (the same samples, in another
+        # order), so that neighbouring lanes trace neighbouring rays and read the same rows of the map.
+        order = self._global_order(layout, map_shape, tables, spp, seed) if mode == "global" else None
+        pixel, generator, _ = _lanes(pixels, spp, seed, stream=GUIDED_STREAM, order=order)
         width = dr.opaque(mi.UInt32, self.width)
         first_axis = 0 if mode == "global" else 2
         uniforms = {name: generator.next_float32() for name in layout.dimensions}
@@ -790,9 +794,7 @@ class MitsubaScene:
             dr.eval(value, finite)
             sums = [dr.block_sum(channel, int(spp)) * scale for channel in (value.x, value.y, value.z)]
         else:
-            target_x = dr.minimum(mi.UInt32(uniforms["x"] * self.width), self.width - 1)
-            target_y = dr.minimum(mi.UInt32(uniforms["y"] * self.height), self.height - 1)
-            target = target_y * self.width + target_x
+            target = self._film_pixel(uniforms)
             sums = []
             for channel in (value.x, value.y, value.z):
                 accumulator = dr.zeros(mi.Float, pixels)
@@ -800,6 +802,29 @@ class MitsubaScene:
                 sums.append(accumulator)
         dr.eval(sums, finite)
         return _rgb_array(sums).reshape(self.height, self.width, 3), _count_false(finite)
+
+    def _film_pixel(self, uniforms):
+        """Flat film pixel (row-major) of each lane's image-plane coordinates ``uniforms['x'], uniforms['y']``."""
+        target_x = dr.minimum(mi.UInt32(uniforms["x"] * self.width), self.width - 1)
+        target_y = dr.minimum(mi.UInt32(uniforms["y"] * self.height), self.height - 1)
+        return target_y * self.width + target_x
+
+    def _global_order(self, layout, map_shape, tables, spp, seed):
+        """The lanes of a global-mode render, grouped by the film pixel each lands in (stable within a pixel).
+
+        A first, cheap kernel draws each lane's image-plane numbers and warps
+        them through the map's first two levels exactly as the render does;
+        a counting sort of the pixels gives the order. Returns a ``mi.UInt32``
+        permutation of the lane numbers.
+        """
+        pixels = self.width * self.height
+        _, generator, _ = _lanes(pixels, spp, seed, stream=GUIDED_STREAM)
+        uniforms = {name: generator.next_float32() for name in layout.dimensions}  # unused draws are not computed
+        if tables is not None:
+            _warp_axes(map_shape[:2], tables[:2], uniforms, layout.axes, mi.UInt32(0), 0)
+        target = self._film_pixel(uniforms)
+        dr.eval(target)
+        return mi.UInt32(kernels.counting_order(np.asarray(target, dtype=np.uint32), pixels))
 
     # -- baseline -------------------------------------------------------------
 
@@ -912,11 +937,13 @@ def gradient_paths(width, height, offsets):
 GUIDED_STREAM = 0x9E37  # PCG32 stream of guided renders, apart from the signal and pixel-sample streams
 
 
-def _lanes(count, spp, seed, *, first=0, stream=0, items=None):
+def _lanes(count, spp, seed, *, first=0, stream=0, items=None, order=None):
     """One lane per sample: ``spp`` samples of each of ``count`` items (cells or pixels) from ``first``.
 
     With ``items`` (a ``mi.UInt32`` of ``count`` item numbers) the items are
-    those instead of the run ``first, first + 1, ...``.
+    those instead of the run ``first, first + 1, ...``. With ``order`` (a
+    ``mi.UInt32`` permutation of the ``count * spp`` sample numbers) lane
+    ``i`` draws sample ``order[i]``: the same samples in another order.
 
     Returns ``(item, generator, lanes)``. Each lane's PCG32 is seeded with a
     TEA hash of (item, sample index, seed), so a sample's random numbers are a
@@ -925,7 +952,7 @@ def _lanes(count, spp, seed, *, first=0, stream=0, items=None):
     as opaque values: one compiled kernel serves every call.
     """
     lanes = int(count) * int(spp)
-    index = dr.arange(mi.UInt32, lanes)
+    index = dr.arange(mi.UInt32, lanes) if order is None else order
     samples_per_item = dr.opaque(mi.UInt32, int(spp))
     if items is None:
         item = dr.opaque(mi.UInt32, int(first)) + index // samples_per_item
