@@ -91,3 +91,20 @@ def test_counting_order_is_the_stable_argsort():
     assert np.array_equal(order, np.argsort(keys, kind="stable"))
     with pytest.raises(ValueError, match="below bins=300"):
         kernels.counting_order(np.array([300], dtype=np.uint32), 300)
+
+
+@pytest.mark.parametrize("size", SIZES)
+@pytest.mark.parametrize("row", [(3,), ()])
+def test_slot_table_kernels_equal_their_numpy_expressions(size, row):
+    rng = np.random.default_rng(5)
+    slots = np.zeros(8 * size, dtype=np.int32)
+    read = np.sort(rng.choice(slots.size, size, replace=False))
+    kernels.number_slots(slots, read, 7)
+    expected = np.zeros_like(slots)
+    expected[read] = np.arange(8, 8 + size)
+    assert np.array_equal(slots, expected)
+    asked = rng.choice(slots.size, size)
+    assert np.array_equal(kernels.unnumbered(slots, asked), asked[slots[asked] == 0])
+    values = rng.standard_normal((size + 7,) + row).astype(np.float32)
+    known = rng.choice(read, size)
+    assert np.array_equal(kernels.gather_slotted(values, slots, known), values[slots[known] - 1])

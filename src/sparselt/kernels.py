@@ -81,7 +81,31 @@ def _compiled():
                 starts[key] += 1
             return order
 
-        _KERNELS = {"counting_order": counting_order, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
+        @numba.njit(parallel=True, cache=True)
+        def number_slots(slots, indices, first):
+            for position in numba.prange(indices.size):
+                slots[indices[position]] = first + position + 1
+
+        @numba.njit(parallel=True, cache=True)
+        def gather_slotted(values, slots, indices, out):
+            for position in numba.prange(indices.size):
+                row = slots[indices[position]] - 1
+                for column in range(values.shape[1]):
+                    out[position, column] = values[row, column]
+
+        @numba.njit(cache=True)
+        def unnumbered(slots, indices):
+            out = np.empty(indices.size, dtype=np.int64)
+            count = 0
+            for position in range(indices.size):
+                index = indices[position]
+                if slots[index] == 0:
+                    out[count] = index
+                    count += 1
+            return out[:count]
+
+        _KERNELS = {"number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
+                    "counting_order": counting_order, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked}
     return _KERNELS
 
@@ -128,6 +152,31 @@ def squared_magnitude(spectrum, out):
     else:
         _compiled()["squared_magnitude"](flat.real, flat.imag, target)
     return out
+
+
+def number_slots(slots, indices, first):
+    """``slots[indices] = first + 1 + arange(len(indices))``: the slot table of :class:`~sparselt.recovery.sample_cache.IndexedValues`."""
+    if indices.size < PARALLEL_MINIMUM:
+        slots[indices] = np.arange(first + 1, first + 1 + indices.size)
+    else:
+        _compiled()["number_slots"](slots, indices, first)
+
+
+def gather_slotted(values, slots, indices):
+    """``values[slots[indices] - 1]`` (rows of ``values``) in one pass, on every core."""
+    out = np.empty((indices.size,) + values.shape[1:], dtype=values.dtype)
+    if indices.size < PARALLEL_MINIMUM:
+        np.take(values, slots[indices] - 1, axis=0, out=out)
+    else:
+        _compiled()["gather_slotted"](values.reshape(values.shape[0], -1), slots, indices, out.reshape(indices.size, -1))
+    return out
+
+
+def unnumbered(slots, indices):
+    """The entries of ``indices`` (in their order) whose slot is 0: ``indices[slots[indices] == 0]``."""
+    if indices.size < PARALLEL_MINIMUM:
+        return indices[slots[indices] == 0]
+    return _compiled()["unnumbered"](slots, indices)
 
 
 def counting_order(keys, bins):
@@ -192,6 +241,12 @@ def warm_up():
         kernels["mark_non_positive"](out, marks)
         kernels["zero_marked"](out, marks)
     kernels["counting_order"](np.zeros(4, dtype=np.uint32), 4)
+    slots = np.zeros(size, dtype=np.int32)
+    kernels["number_slots"](slots, indices, 0)
+    kernels["unnumbered"](slots, indices)
+    for dtype, columns in ((np.float32, 3), (np.complex128, 1)):  # the path-space oracle's and the SFT's caches
+        kernels["gather_slotted"](np.zeros((size, columns), dtype=dtype), slots, indices,
+                                  np.empty((size, columns), dtype=dtype))
     for complex_ in (np.complex64, np.complex128):  # the complex operator's grid
         kernels["scatter"](np.zeros(size, dtype=complex_), indices, np.zeros(size, dtype=complex_))
         kernels["gather"](np.zeros(size, dtype=complex_), indices, np.empty(size, dtype=complex_))

@@ -119,6 +119,9 @@ class CellOracle:
             self.seconds += time.perf_counter() - start
             self.store.add(missing, rendered)
             self.cells_by_phase[self.sft_phase if self.sft_phase in PHASES else "support"] += int(missing.size)
+            if missing.size == indices.size:  # every cell asked for is new: missing holds them, sorted and distinct
+                if missing.size < 2 or np.all(indices[1:] > indices[:-1]):  # ... in the order asked for
+                    return rendered
         return self.store.get(indices)
 
     def channel(self, channel):

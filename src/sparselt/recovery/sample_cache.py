@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
+
 #: Largest signal given a dense slot table (256 MB of int32).
 DENSE_LIMIT = 1 << 26
 
@@ -62,6 +64,8 @@ class IndexedValues:
     def missing(self, indices):
         """The distinct indices among ``indices`` not read yet, sorted."""
         indices = np.asarray(indices, dtype=np.int64)
+        if self.dense:
+            return _distinct_sorted(kernels.unnumbered(self._slots, np.ascontiguousarray(indices)))
         return _distinct_sorted(indices[~self._known(indices)])
 
     def add(self, indices, values):
@@ -70,15 +74,18 @@ class IndexedValues:
         needed = self.count + indices.size
         if needed > self._indices.size:
             capacity = max(needed, 2 * self._indices.size)
-            self._values = np.concatenate([self._values, np.zeros((capacity - self._values.shape[0],)
-                                                                  + self._values.shape[1:], self._values.dtype)])
-            self._indices = np.concatenate([self._indices, np.zeros(capacity - self._indices.size, np.int64)])
+            grown = np.empty((capacity,) + self._values.shape[1:], self._values.dtype)  # only [:count] is ever read
+            grown[:self.count] = self._values[:self.count]
+            self._values = grown
+            grown = np.empty(capacity, np.int64)
+            grown[:self.count] = self._indices[:self.count]
+            self._indices = grown
         self._values[self.count:needed] = values
         self._indices[self.count:needed] = indices
-        positions = np.arange(self.count, needed, dtype=np.int64)
         if self.dense:
-            self._slots[indices] = positions + 1
+            kernels.number_slots(self._slots, np.ascontiguousarray(indices), self.count)
         else:
+            positions = np.arange(self.count, needed, dtype=np.int64)
             insert_at = np.searchsorted(self._sorted, indices)
             self._sorted = np.insert(self._sorted, insert_at, indices)
             self._positions = np.insert(self._positions, insert_at, positions)
@@ -88,7 +95,7 @@ class IndexedValues:
         """Values at ``indices``, all of which were read."""
         indices = np.asarray(indices, dtype=np.int64)
         if self.dense:
-            return self._values[self._slots[indices] - 1]
+            return kernels.gather_slotted(self._values, self._slots, np.ascontiguousarray(indices))
         return self._values[self._positions[np.searchsorted(self._sorted, indices)]]
 
 
