@@ -331,3 +331,23 @@ def test_an_fsspec_url_is_refused_with_a_message(cornell):
     config = AcquisitionConfig(scene="cornell-box", kind="dof", shape=(8, 8, 2, 2), spp=1, aperture=0.1)
     with pytest.raises(ValueError, match="only file-system paths are supported"):
         acquire_signal(config, "s3://bucket/signal", progress=False, scene_spec=cornell)
+
+
+def test_a_store_recreated_with_another_chunking_is_never_written_through_a_stale_handle(tmp_path):
+    """A cluster worker keeps its store handle between runs; a store rebuilt at the same path is reopened."""
+    import numpy as np
+
+    from sparselt.storage import zarr_store
+
+    path = tmp_path / "store"
+    first = zarr_store.ChunkGrid.for_cells((4, 4, 2, 2), 16)
+    zarr_store.create_store(path, first, ("x", "y", "u", "v"), {})
+    zarr_store.write_chunk(path, first, 0, np.ones((first.chunk(0)[1], 3)))
+    zarr_store.remove_store(path)  # another process removes and recreates it: this process's cache is not told
+    second = zarr_store.ChunkGrid.for_cells((4, 4, 2, 2), 32)
+    zarr_store.create_store(path, second, ("x", "y", "u", "v"), {})
+    _, count, region = second.chunk(1)
+    values = np.arange(count * 3, dtype=np.float32).reshape(count, 3)
+    zarr_store.write_chunk(path, second, 1, values)
+    stored = np.asarray(zarr_store.open_data(path)[region]).reshape(count, 3)
+    assert np.array_equal(stored, values)

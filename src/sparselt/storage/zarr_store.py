@@ -214,15 +214,29 @@ _OPEN_ARRAYS = {}
 
 
 def _array(path, mode):
+    """The store's data array, opened once per process and store.
+
+    The handle is kept with the identity of the array's metadata file: a store
+    removed and created again at the same path (by another process, as a
+    cluster's workers see it) is opened again, never written through a
+    handle that holds the old store's shape and chunking.
+    """
     import zarr
 
     key = (os.path.abspath(path), mode)
-    array = _OPEN_ARRAYS.get(key)
-    if array is None:
-        # Every chunk gets a file, zeros included: a missing file then always means a missing chunk.
-        array = zarr.open_array(os.path.join(os.fspath(path), ARRAY_NAME), mode=mode, zarr_format=3)
-        array = array.with_config({"write_empty_chunks": True})
-        _OPEN_ARRAYS[key] = array
+    folder = os.path.join(os.fspath(path), ARRAY_NAME)
+    try:
+        status = os.stat(os.path.join(folder, "zarr.json"))
+        stamp = (status.st_ino, status.st_mtime_ns, status.st_size)
+    except OSError:
+        stamp = None
+    cached = _OPEN_ARRAYS.get(key)
+    if cached is not None and cached[0] == stamp:
+        return cached[1]
+    # Every chunk gets a file, zeros included: a missing file then always means a missing chunk.
+    array = zarr.open_array(folder, mode=mode, zarr_format=3)
+    array = array.with_config({"write_empty_chunks": True})
+    _OPEN_ARRAYS[key] = (stamp, array)
     return array
 
 
