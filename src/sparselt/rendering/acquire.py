@@ -50,7 +50,11 @@ DEFAULT_MAX_DEPTH = 3
 LANES_PER_CHUNK = 1 << 22
 MAXIMUM_SPP = 1 << 16
 LANES_PER_LAUNCH = 1 << 32  # Dr.Jit's 32-bit lane indices: cells x spp of one launch stay below
-CHUNKS_PER_WORKER = 4  # default chunking of a local cluster run: at least this many chunks per worker
+# Default chunking of a cluster run: at least this many chunks per task slot. Chunks stay at most 4M samples, so
+# only a signal of fewer than 4M samples per slot (a run of about a second) gets bigger chunks than 4M-sample ones
+# would give; there each further chunk costs a task's round trip and a launch (4 per slot: +13-17% over the
+# in-process run on a 4.2M-sample signal, 2: +9-11%, 1: +5-8%; issue 24).
+CHUNKS_PER_WORKER = 1
 MAXIMUM_AXES = 63  # NumPy arrays have at most 64 axes, one of them RGB
 NONFINITE_POLICIES = ("error", "zero")
 
@@ -287,7 +291,8 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         Show a progress bar (samples, rate, ETA) on standard error.
     chunk_cells : int, optional
         At most this many cells per chunk (default: about 4M samples per
-        chunk, and at least 4 chunks per worker with ``workers``). The data do not depend on it; a resumed run keeps the chunking
+        chunk, and at least one chunk per worker thread on a cluster). The
+        data do not depend on it; a resumed run keeps the chunking
         it started with.
     scene_spec : SceneSpec, optional
         Use this scene description instead of resolving ``config.scene``.
