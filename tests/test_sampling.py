@@ -111,3 +111,13 @@ def test_same_seed_same_signal_whatever_the_chunking(cornell):
     # Statistically the same image, though.
     assert np.all(np.abs(one.image().mean(axis=(0, 1)) - other.image().mean(axis=(0, 1))) < 0.1 * one.image().mean(axis=(0, 1)))
 
+
+
+def test_camera_rays_are_coherent_packets_except_behind_a_wide_lens():
+    """Embree's coherent mode for camera rays (issue 24): pinholes and narrow lenses yes, dof-sculptures' lens no."""
+    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.scenes import get_scene
+
+    assert mitsuba_backend.coherent_camera_rays(get_scene("cornell-box").camera)
+    assert mitsuba_backend.coherent_camera_rays(get_scene("cornell-box").with_lens(0.05, 4.0).camera)
+    assert not mitsuba_backend.coherent_camera_rays(get_scene("dof-sculptures").camera)
