@@ -108,3 +108,27 @@ def test_slot_table_kernels_equal_their_numpy_expressions(size, row):
     values = rng.standard_normal((size + 7,) + row).astype(np.float32)
     known = rng.choice(read, size)
     assert np.array_equal(kernels.gather_slotted(values, slots, known), values[slots[known] - 1])
+
+
+@pytest.mark.parametrize("upscale", [(1, 1), (2, 3)])
+def test_blocked_cell_means_equal_bincount(upscale):
+    """Pixel samples summed per image-cell block give bincount's cells, means and counts exactly."""
+    from sparselt.methods.pixel_samples import PixelSamples, cell_means
+
+    grid_shape, spp = (6, 5, 4, 3), 7
+    width, height = grid_shape[0] * upscale[0], grid_shape[1] * upscale[1]
+    rng = np.random.default_rng(6)
+    pixel_y, pixel_x = np.divmod(np.repeat(np.arange(width * height), spp), width)
+    block = (pixel_x // upscale[0]) * grid_shape[1] + pixel_y // upscale[1]
+    cells = block * 12 + rng.integers(0, 12, block.size)
+    values = rng.random((cells.size, 3)).astype(np.float32)
+    samples = PixelSamples(values=values, cells=cells, spp=spp, resolution=(width, height), nonfinite=0)
+    size = int(np.prod(grid_shape))
+    expected = cell_means(samples, size)
+    blocked = cell_means(samples, size, grid_shape)
+    for got, want in zip(blocked, expected):
+        assert np.array_equal(got, want)
+    stray = PixelSamples(values=values, cells=np.roll(cells, 1), spp=spp, resolution=(width, height), nonfinite=0)
+    assert kernels.pixel_block_cell_sums(stray.cells, values[:, 0], spp, (width, height), grid_shape) is None
+    for got, want in zip(cell_means(stray, size, grid_shape), cell_means(stray, size)):  # falls back to bincount
+        assert np.array_equal(got, want)

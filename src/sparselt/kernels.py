@@ -104,7 +104,40 @@ def _compiled():
                     count += 1
             return out[:count]
 
-        _KERNELS = {"number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
+        @numba.njit(parallel=True, cache=True)
+        def block_sums(cells, weights, spp, width, upscale_x, upscale_y, grid_height, block_cells, per_block,
+                       out_cells, out_sums, out_counts, filled):
+            blocks = filled.size
+            for block in numba.prange(blocks):
+                grid_x, grid_y = block // grid_height, block % grid_height
+                base = block * block_cells
+                counts = np.zeros(block_cells, dtype=np.int64)
+                sums = np.zeros(block_cells, dtype=np.float64)
+                stray = 0
+                for pixel_y in range(grid_y * upscale_y, (grid_y + 1) * upscale_y):  # increasing pixel index:
+                    for pixel_x in range(grid_x * upscale_x, (grid_x + 1) * upscale_x):  # bincount's order
+                        pixel = pixel_y * width + pixel_x
+                        for row in range(pixel * spp, (pixel + 1) * spp):
+                            cell = cells[row] - base
+                            if cell < 0 or cell >= block_cells:
+                                stray += 1
+                            else:
+                                counts[cell] += 1
+                                sums[cell] += weights[row]
+                if stray:
+                    filled[block] = -1
+                    continue
+                offset = block * per_block
+                kept = 0
+                for cell in range(block_cells):
+                    if counts[cell]:
+                        out_cells[offset + kept] = base + cell
+                        out_sums[offset + kept] = sums[cell]
+                        out_counts[offset + kept] = counts[cell]
+                        kept += 1
+                filled[block] = kept
+
+        _KERNELS = {"block_sums": block_sums, "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
                     "counting_order": counting_order, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked}
     return _KERNELS
@@ -179,6 +212,38 @@ def unnumbered(slots, indices):
     return _compiled()["unnumbered"](slots, indices)
 
 
+def pixel_block_cell_sums(cells, weights, spp, resolution, grid_shape):
+    """Per-cell sample counts and weight sums of pixel samples, by image-cell blocks; None if a sample strays.
+
+    ``cells`` and ``weights`` hold ``spp`` samples per output pixel, pixel-major
+    in row-major pixel order (:class:`~sparselt.methods.pixel_samples.PixelSamples`);
+    every sample of a pixel lies in the block of cells of the grid image
+    cell over it (C order, image axes first). Each block is summed by one
+    thread in increasing sample order, as ``numpy.bincount`` sums, without
+    the grid-size count and sum arrays bincount fills and scans. Returns
+    ``(cells, sums, counts)`` of the cells with samples, sorted, sums in
+    float64; ``None`` when a sample lies outside its pixel's block.
+    """
+    width, height = resolution
+    upscale_x, upscale_y = width // grid_shape[0], height // grid_shape[1]
+    block_cells = 1
+    for size in grid_shape[2:]:
+        block_cells *= int(size)
+    blocks = int(grid_shape[0]) * int(grid_shape[1])
+    per_block = min(block_cells, upscale_x * upscale_y * spp)
+    out_cells = np.empty(blocks * per_block, dtype=np.int64)
+    out_sums = np.empty(blocks * per_block, dtype=np.float64)
+    out_counts = np.empty(blocks * per_block, dtype=np.int64)
+    filled = np.empty(blocks, dtype=np.int64)
+    _compiled()["block_sums"](np.ascontiguousarray(cells, dtype=np.int64), np.ascontiguousarray(weights), int(spp),
+                              int(width), int(upscale_x), int(upscale_y), int(grid_shape[1]), int(block_cells),
+                              int(per_block), out_cells, out_sums, out_counts, filled)
+    if np.any(filled < 0):
+        return None
+    keep = (np.arange(per_block)[None, :] < filled[:, None]).reshape(-1)
+    return out_cells[keep], out_sums[keep], out_counts[keep]
+
+
 def counting_order(keys, bins):
     """The stable order that sorts ``keys`` (uint32, each below ``bins``): a counting sort, two passes.
 
@@ -241,6 +306,8 @@ def warm_up():
         kernels["mark_non_positive"](out, marks)
         kernels["zero_marked"](out, marks)
     kernels["counting_order"](np.zeros(4, dtype=np.uint32), 4)
+    for weights in (np.zeros(4, dtype=np.float32), np.zeros(4, dtype=np.float64)):
+        pixel_block_cell_sums(np.zeros(4, dtype=np.int64), weights, 1, (2, 2), (2, 2, 1))
     slots = np.zeros(size, dtype=np.int32)
     kernels["number_slots"](slots, indices, 0)
     kernels["unnumbered"](slots, indices)

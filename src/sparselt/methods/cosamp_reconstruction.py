@@ -240,7 +240,7 @@ def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=
     if thesis_faithful:
         with timer("other"):
             pixel_chroma = chroma(samples.pixel_means().astype(np.float64))
-            cells, means, _ = cell_means(samples, size)
+            cells, means, _ = cell_means(samples, size, grid_shape)
         with timer("reconstruction"):
             reconstruction, result = reconstruct_luminance(cells, means, grid_shape, gamma=gamma, sparsity=sparsity)
         with timer("integration"):
@@ -251,7 +251,7 @@ def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=
 
     def reconstruct(train):
         with timer("other"):
-            cells, means, _ = cell_means(train, size)
+            cells, means, _ = cell_means(train, size, grid_shape)
         with timer("reconstruction"):
             reconstruction, result = reconstruct_luminance(cells, means, grid_shape, gamma=gamma, sparsity=sparsity)
         return reconstruction, {"measured_cells": int(cells.size), "cosamp_iterations": result.iterations,

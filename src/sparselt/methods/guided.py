@@ -114,7 +114,7 @@ class _GuidedMethod(Method):
             pilot = draw_pixel_samples(context, Budget(spp=map_spp, seed=budget.seed ^ 0x5A5A5A5A),
                                        resolution=tuple(context.grid_shape[:2]))
         with timer("other"):
-            cells, means, _ = cell_means(pilot, math.prod(context.grid_shape))
+            cells, means, _ = cell_means(pilot, math.prod(context.grid_shape), context.grid_shape)
         values, details = self.map_values(context, options, cells, means, timer)
         if mode == "per-pixel" and map_spp >= 2:
             weights = self.select_defensive(context, options, pilot, timer)
@@ -158,7 +158,7 @@ class _GuidedMethod(Method):
         for fold in (0, 1):
             with timer("other"):
                 train, test = pilot.fold(fold), pilot.fold(1 - fold)
-                cells, means, _ = cell_means(train, math.prod(context.grid_shape))
+                cells, means, _ = cell_means(train, math.prod(context.grid_shape), context.grid_shape)
             values, _ = self.map_values(context, options, cells, means, timer)
             with timer("other"):
                 conditional = _conditionals(values, image_cells, rest)

@@ -9,10 +9,12 @@ budget, so ``samples-mean`` shows what the reconstruction itself adds.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import kernels
 from ..images import luminance
 
 LANES_PER_LAUNCH = 1 << 22
@@ -116,8 +118,13 @@ def sample_mean_image(context, budget, timer):
     return samples, image
 
 
-def cell_means(samples, size):
+def cell_means(samples, size, grid_shape=None):
     """Luminance measurements of the sampled cells (thesis 8.1.1: a cell that receives samples is measured by their mean).
+
+    With the signal's ``grid_shape`` (whose image axes divide the samples'
+    resolution), the sums run per image-cell block on every core
+    (:func:`~sparselt.kernels.pixel_block_cell_sums`): the same numbers,
+    without two grid-size arrays.
 
     Returns
     -------
@@ -128,7 +135,16 @@ def cell_means(samples, size):
     counts : ndarray of int64
         Samples in each.
     """
+    weights = luminance(samples.values)
+    if grid_shape is not None and math.prod(grid_shape) == size and len(grid_shape) >= 2:
+        width, height = samples.resolution
+        if width % grid_shape[0] == 0 and height % grid_shape[1] == 0:
+            blocked = kernels.pixel_block_cell_sums(samples.cells, weights, samples.spp, samples.resolution,
+                                                    tuple(int(v) for v in grid_shape))
+            if blocked is not None:
+                cells, sums, counts = blocked
+                return cells, sums / counts, counts
     counts = np.bincount(samples.cells, minlength=size)
-    sums = np.bincount(samples.cells, weights=luminance(samples.values), minlength=size)
+    sums = np.bincount(samples.cells, weights=weights, minlength=size)
     cells = np.flatnonzero(counts)
     return cells, sums[cells] / counts[cells], counts[cells]
