@@ -106,27 +106,23 @@ def _compiled():
 
         @numba.njit(parallel=True, cache=True)
         def block_sums(cells, weights, spp, width, upscale_x, upscale_y, grid_height, block_cells, per_block,
-                       out_cells, out_sums, out_counts, filled):
+                       out_cells, out_sums, out_counts, filled, stray):
             blocks = filled.size
             for block in numba.prange(blocks):
                 grid_x, grid_y = block // grid_height, block % grid_height
                 base = block * block_cells
                 counts = np.zeros(block_cells, dtype=np.int64)
                 sums = np.zeros(block_cells, dtype=np.float64)
-                stray = 0
                 for pixel_y in range(grid_y * upscale_y, (grid_y + 1) * upscale_y):  # increasing pixel index:
                     for pixel_x in range(grid_x * upscale_x, (grid_x + 1) * upscale_x):  # bincount's order
                         pixel = pixel_y * width + pixel_x
                         for row in range(pixel * spp, (pixel + 1) * spp):
                             cell = cells[row] - base
                             if cell < 0 or cell >= block_cells:
-                                stray += 1
+                                stray[row] = True
                             else:
                                 counts[cell] += 1
                                 sums[cell] += weights[row]
-                if stray:
-                    filled[block] = -1
-                    continue
                 offset = block * per_block
                 kept = 0
                 for cell in range(block_cells):
@@ -213,16 +209,18 @@ def unnumbered(slots, indices):
 
 
 def pixel_block_cell_sums(cells, weights, spp, resolution, grid_shape):
-    """Per-cell sample counts and weight sums of pixel samples, by image-cell blocks; None if a sample strays.
+    """Per-cell sample counts and weight sums of pixel samples, summed as ``numpy.bincount`` sums them.
 
     ``cells`` and ``weights`` hold ``spp`` samples per output pixel, pixel-major
     in row-major pixel order (:class:`~sparselt.methods.pixel_samples.PixelSamples`);
-    every sample of a pixel lies in the block of cells of the grid image
-    cell over it (C order, image axes first). Each block is summed by one
-    thread in increasing sample order, as ``numpy.bincount`` sums, without
-    the grid-size count and sum arrays bincount fills and scans. Returns
-    ``(cells, sums, counts)`` of the cells with samples, sorted, sums in
-    float64; ``None`` when a sample lies outside its pixel's block.
+    a pixel's samples lie in the block of cells of the grid image cell
+    over it (C order, image axes first). Each block is summed by one thread
+    in increasing sample order, as bincount sums, without the grid-size
+    count and sum arrays bincount fills and scans. A sample whose jitter
+    rounded into the neighbouring cell (a few in a million) strays from its
+    block: the cells strays reach are summed again over all their samples in
+    sample order. Returns ``(cells, sums, counts)`` of the cells with
+    samples, sorted, sums in float64.
     """
     width, height = resolution
     upscale_x, upscale_y = width // grid_shape[0], height // grid_shape[1]
@@ -235,13 +233,38 @@ def pixel_block_cell_sums(cells, weights, spp, resolution, grid_shape):
     out_sums = np.empty(blocks * per_block, dtype=np.float64)
     out_counts = np.empty(blocks * per_block, dtype=np.int64)
     filled = np.empty(blocks, dtype=np.int64)
-    _compiled()["block_sums"](np.ascontiguousarray(cells, dtype=np.int64), np.ascontiguousarray(weights), int(spp),
-                              int(width), int(upscale_x), int(upscale_y), int(grid_shape[1]), int(block_cells),
-                              int(per_block), out_cells, out_sums, out_counts, filled)
-    if np.any(filled < 0):
-        return None
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    weights = np.ascontiguousarray(weights)
+    stray = np.zeros(cells.size, dtype=np.bool_)
+    _compiled()["block_sums"](cells, weights, int(spp), int(width), int(upscale_x), int(upscale_y), int(grid_shape[1]),
+                              int(block_cells), int(per_block), out_cells, out_sums, out_counts, filled, stray)
     keep = (np.arange(per_block)[None, :] < filled[:, None]).reshape(-1)
-    return out_cells[keep], out_sums[keep], out_counts[keep]
+    found, sums, counts = out_cells[keep], out_sums[keep], out_counts[keep]
+    stray_rows = np.flatnonzero(stray)
+    if stray_rows.size == 0:
+        return found, sums, counts
+    # The cells strays reach: every sample of each, in sample order (its own block's rows and the strays).
+    reached = np.unique(cells[stray_rows])
+    totals, numbers = np.empty(reached.size), np.empty(reached.size, dtype=np.int64)
+    for position, cell in enumerate(reached):
+        block = int(cell) // block_cells
+        grid_x, grid_y = divmod(block, int(grid_shape[1]))
+        pixel_y, pixel_x = np.meshgrid(np.arange(grid_y * upscale_y, (grid_y + 1) * upscale_y),
+                                       np.arange(grid_x * upscale_x, (grid_x + 1) * upscale_x), indexing="ij")
+        pixels = (pixel_y * width + pixel_x).reshape(-1)
+        rows = np.concatenate([(pixels[:, None] * spp + np.arange(spp)[None, :]).reshape(-1), stray_rows])
+        rows = np.sort(rows[cells[rows] == cell])
+        total = 0.0
+        for row in rows:  # sequential float64 additions in sample order: bincount's sum
+            total += float(weights[row])
+        totals[position], numbers[position] = total, rows.size
+    where = np.searchsorted(found, reached)
+    present = where < found.size
+    present[present] = found[where[present]] == reached[present]
+    sums[where[present]], counts[where[present]] = totals[present], numbers[present]
+    insert = np.searchsorted(found, reached[~present])
+    return (np.insert(found, insert, reached[~present]), np.insert(sums, insert, totals[~present]),
+            np.insert(counts, insert, numbers[~present]))
 
 
 def counting_order(keys, bins):

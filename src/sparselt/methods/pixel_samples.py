@@ -139,11 +139,9 @@ def cell_means(samples, size, grid_shape=None):
     if grid_shape is not None and math.prod(grid_shape) == size and len(grid_shape) >= 2:
         width, height = samples.resolution
         if width % grid_shape[0] == 0 and height % grid_shape[1] == 0:
-            blocked = kernels.pixel_block_cell_sums(samples.cells, weights, samples.spp, samples.resolution,
-                                                    tuple(int(v) for v in grid_shape))
-            if blocked is not None:
-                cells, sums, counts = blocked
-                return cells, sums / counts, counts
+            cells, sums, counts = kernels.pixel_block_cell_sums(samples.cells, weights, samples.spp,
+                                                                samples.resolution, tuple(int(v) for v in grid_shape))
+            return cells, sums / counts, counts
     counts = np.bincount(samples.cells, minlength=size)
     sums = np.bincount(samples.cells, weights=weights, minlength=size)
     cells = np.flatnonzero(counts)
