@@ -133,3 +133,14 @@ def test_blocked_cell_means_equal_bincount(upscale):
     stray = PixelSamples(values=values, cells=strays, spp=spp, resolution=(width, height), nonfinite=0)
     for got, want in zip(cell_means(stray, size, grid_shape), cell_means(stray, size)):
         assert np.array_equal(got, want)
+
+
+def test_ordered_sums_add_in_lane_order():
+    rng = np.random.default_rng(7)
+    targets = rng.integers(0, 50, 10_000).astype(np.uint32)
+    channels = [rng.standard_normal(10_000).astype(np.float32) for _ in range(3)]
+    expected = np.zeros((50, 3), dtype=np.float32)
+    for lane in range(0, 10_000):
+        for channel in range(3):
+            expected[targets[lane], channel] += channels[channel][lane]
+    assert np.array_equal(kernels.ordered_sums(targets, channels, 50), expected)

@@ -133,7 +133,15 @@ def _compiled():
                         kept += 1
                 filled[block] = kept
 
-        _KERNELS = {"block_sums": block_sums, "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
+        @numba.njit(cache=True)
+        def ordered_sums(targets, first, second, third, out):
+            for lane in range(targets.size):
+                target = targets[lane]
+                out[target, 0] += first[lane]
+                out[target, 1] += second[lane]
+                out[target, 2] += third[lane]
+
+        _KERNELS = {"ordered_sums": ordered_sums, "block_sums": block_sums, "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
                     "counting_order": counting_order, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked}
     return _KERNELS
@@ -267,6 +275,20 @@ def pixel_block_cell_sums(cells, weights, spp, resolution, grid_shape):
             np.insert(counts, insert, numbers[~present]))
 
 
+def ordered_sums(targets, channels, bins):
+    """Per-bin sums of three channels, each added in lane order: a splat whose result does not depend on threads.
+
+    ``targets`` (uint32) and the three ``channels`` (float32) have one entry
+    per lane; returns a float32 array ``(bins, 3)``.
+    """
+    targets = np.ascontiguousarray(targets, dtype=np.uint32)
+    if targets.size and int(targets.max()) >= bins:
+        raise ValueError(f"targets must be below bins={bins}, got {int(targets.max())}")
+    out = np.zeros((int(bins), 3), dtype=np.float32)
+    _compiled()["ordered_sums"](targets, *(np.ascontiguousarray(channel, dtype=np.float32) for channel in channels), out)
+    return out
+
+
 def counting_order(keys, bins):
     """The stable order that sorts ``keys`` (uint32, each below ``bins``): a counting sort, two passes.
 
@@ -329,6 +351,7 @@ def warm_up():
         kernels["mark_non_positive"](out, marks)
         kernels["zero_marked"](out, marks)
     kernels["counting_order"](np.zeros(4, dtype=np.uint32), 4)
+    ordered_sums(np.zeros(4, dtype=np.uint32), [np.zeros(4, dtype=np.float32)] * 3, 4)
     for weights in (np.zeros(4, dtype=np.float32), np.zeros(4, dtype=np.float64)):
         pixel_block_cell_sums(np.zeros(4, dtype=np.int64), weights, 1, (2, 2), (2, 2, 1))
     slots = np.zeros(size, dtype=np.int32)

@@ -817,13 +817,13 @@ class MitsubaScene:
         if mode == "per-pixel":
             dr.eval(value, finite)
             sums = [dr.block_sum(channel, int(spp)) * scale for channel in (value.x, value.y, value.z)]
-        else:
+        else:  # splatted in lane order, on the host: the same bytes for the same seed, whatever the threads did
             target = self._film_pixel(uniforms)
-            sums = []
-            for channel in (value.x, value.y, value.z):
-                accumulator = dr.zeros(mi.Float, pixels)
-                dr.scatter_reduce(dr.ReduceOp.Add, accumulator, channel * scale, target)
-                sums.append(accumulator)
+            weighted = [channel * scale for channel in (value.x, value.y, value.z)]
+            dr.eval(weighted, target, finite)
+            image = kernels.ordered_sums(np.asarray(target, dtype=np.uint32),
+                                         [np.asarray(channel, dtype=np.float32) for channel in weighted], pixels)
+            return image.reshape(self.height, self.width, 3), _count_false(finite)
         dr.eval(sums, finite)
         return _rgb_array(sums).reshape(self.height, self.width, 3), _count_false(finite)
 
