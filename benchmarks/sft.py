@@ -136,28 +136,53 @@ def table_6_1(log2, arguments):
     return rows
 
 
-def window_choice(log2, arguments):
-    """Samples per coefficient, time and misses for each window and width (the default's measurement)."""
+def _seeds_of(n, sparsity, support, signal, arguments, truth=None, **options):
+    """One setting of ``sft`` over the seeds: samples per coefficient (mean, worst), median time, misses, error.
+
+    The error (with ``truth``, the signal's DFT on ``support``) is the mean
+    relative L2 error of the estimate on the true support.
+    """
+    samples, times, missed, errors = [], [], 0, []
+    for seed in range(arguments.seeds):
+        start = time.perf_counter()
+        result = sft(lambda indices: signal[indices], n, sparsity, seed=seed, **options)
+        times.append(time.perf_counter() - start)
+        samples.append(result.samples)
+        missed += int(np.setdiff1d(support, result.estimate.indices).size)
+        if truth is not None:
+            found = np.zeros(support.size, dtype=np.complex128)
+            where = np.searchsorted(result.estimate.indices, support)
+            hit = where < result.estimate.sparsity
+            hit[hit] = result.estimate.indices[where[hit]] == support[hit]
+            found[hit] = result.estimate.values[where[hit]]
+            errors.append(float(np.linalg.norm(found - truth) / np.linalg.norm(truth)))
+    return dict(per_coefficient=float(np.mean(samples)) / sparsity, worst_per_coefficient=float(max(samples)) / sparsity,
+                time_s=float(np.median(times)), missed=missed, error=float(np.mean(errors)) if errors else None)
+
+
+def _sweep(log2, arguments, settings, keys, with_error=False):
+    """Rows of ``settings`` (dicts of sft options) at n = 2^log2, k = 50, exact and at 20 dB: ``keys`` of each."""
     n, sparsity = 1 << log2, 50
     signals = {snr: make_signal(n, sparsity, snr, seed=3000 + log2) for snr in (None, 20.0)}
     rows = []
-    for window, widths in (("chebyshev", (2.5, 3, 4, 6)), ("gaussian", (3, 4, 6, 8)), ("bspline", (6, 8, 12))):
-        for width in widths:
-            row = dict(window=window, width=width)
-            for snr, (support, signal) in signals.items():
-                samples, times, missed = [], [], 0
-                for seed in range(arguments.seeds):
-                    start = time.perf_counter()
-                    result = sft(lambda indices: signal[indices], n, sparsity, window=window, width=width, seed=seed,
-                                 snr=np.inf if snr is None else snr)
-                    times.append(time.perf_counter() - start)
-                    samples.append(result.samples)
-                    missed += int(np.setdiff1d(support, result.estimate.indices).size)
-                key = "exact" if snr is None else "noisy"
-                row.update({f"{key}_per_coefficient": float(np.mean(samples)) / sparsity,
-                            f"{key}_time_s": float(np.median(times)), f"{key}_missed": missed})
-            rows.append(row)
+    for setting in settings:
+        row = dict(setting)
+        for snr, (support, signal) in signals.items():
+            truth = fft.fftn(signal)[support] if with_error else None
+            measured = _seeds_of(n, sparsity, support, signal, arguments, truth,
+                                 snr=np.inf if snr is None else snr, **setting)
+            prefix = "exact" if snr is None else "noisy"
+            row.update({f"{prefix}_{key}": measured[key] for key in keys})
+        rows.append(row)
     return rows
+
+
+def window_choice(log2, arguments):
+    """Samples per coefficient, time and misses for each window and width (the default's measurement)."""
+    settings = [dict(window=window, width=width)
+                for window, widths in (("chebyshev", (2.5, 3, 4, 6)), ("gaussian", (3, 4, 6, 8)), ("bspline", (6, 8, 12)))
+                for width in widths]
+    return _sweep(log2, arguments, settings, ("per_coefficient", "time_s", "missed"))
 
 
 def fewest_samples(log2, arguments):
@@ -171,35 +196,9 @@ def fewest_samples(log2, arguments):
     narrower windows read, miss and cost. The coefficient error is the
     relative L2 error on the true support against the noisy signal's own DFT.
     """
-    n, sparsity = 1 << log2, 50
-    signals = {snr: make_signal(n, sparsity, snr, seed=3000 + log2) for snr in (None, 20.0)}
-    truths = {snr: fft.fftn(signal)[support] for snr, (support, signal) in signals.items()}
-    rows = []
-    for alpha in (2, 3, 4):
-        for width in (1.5, 2.0, 3.0):
-            row = dict(alpha=alpha, width=width)
-            for snr, (support, signal) in signals.items():
-                samples, times, missed, errors = [], [], 0, []
-                for seed in range(arguments.seeds):
-                    start = time.perf_counter()
-                    result = sft(lambda indices: signal[indices], n, sparsity, alpha=alpha, width=width, seed=seed,
-                                 snr=np.inf if snr is None else snr)
-                    times.append(time.perf_counter() - start)
-                    samples.append(result.samples)
-                    missed += int(np.setdiff1d(support, result.estimate.indices).size)
-                    found = np.zeros(support.size, dtype=np.complex128)
-                    where = np.searchsorted(result.estimate.indices, support)
-                    hit = (where < result.estimate.sparsity)
-                    hit[hit] = result.estimate.indices[where[hit]] == support[hit]
-                    found[hit] = result.estimate.values[where[hit]]
-                    errors.append(float(np.linalg.norm(found - truths[snr]) / np.linalg.norm(truths[snr])))
-                key = "exact" if snr is None else "noisy"
-                row.update({f"{key}_per_coefficient": float(np.mean(samples)) / sparsity,
-                            f"{key}_worst_per_coefficient": float(max(samples)) / sparsity,
-                            f"{key}_time_s": float(np.median(times)), f"{key}_missed": missed,
-                            f"{key}_error": float(np.mean(errors))})
-            rows.append(row)
-    return rows
+    settings = [dict(alpha=alpha, width=width) for alpha in (2, 3, 4) for width in (1.5, 2.0, 3.0)]
+    return _sweep(log2, arguments, settings, ("per_coefficient", "worst_per_coefficient", "time_s", "missed", "error"),
+                  with_error=True)
 
 
 def thesis_lattice(arguments):
