@@ -30,6 +30,7 @@ A cell sampled several times is given once, with the mean of its samples
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -81,6 +82,34 @@ def mean_per_cell(cells, values):
     sums = np.zeros(unique_cells.size, dtype=np.result_type(values.dtype, np.float64))
     np.add.at(sums, inverse, values)
     return unique_cells, (sums / counts).astype(values.dtype if np.issubdtype(values.dtype, np.inexact) else np.float64), counts
+
+
+@functools.lru_cache(maxsize=8)
+def _plane_fixes(grid_shape):
+    """Flat half-spectrum indices of the non-canonical and the self-conjugate entries, and the planes of the last axis.
+
+    A function of the grid shape alone, kept for the last few shapes (both
+    folds of a cross-fitted reconstruction, and every repeat, share one);
+    the arrays are read-only.
+    """
+    last = grid_shape[-1]
+    half = last // 2 + 1
+    planes = [0] + ([last // 2] if last % 2 == 0 and last > 1 else [])
+    other = grid_shape[:-1]
+    count = math.prod(other)
+    flat_other = np.arange(count, dtype=np.int64)
+    partner_other = partner_indices(other, flat_other) if other else flat_other
+    noncanonical, selfconjugate = [], []
+    for plane in planes:
+        flat = flat_other * half + plane
+        noncanonical.append(flat[partner_other < flat_other])
+        selfconjugate.append(flat[partner_other == flat_other])
+    plane_of_last = np.zeros(half, dtype=bool)
+    plane_of_last[planes] = True
+    arrays = (np.concatenate(noncanonical), np.concatenate(selfconjugate), plane_of_last)
+    for array in arrays:
+        array.flags.writeable = False
+    return arrays
 
 
 class PartialFourier(LinearOperator):
@@ -158,22 +187,7 @@ class PartialFourier(LinearOperator):
 
     def _plane_fixes(self):
         """Flat indices of the non-canonical and the self-conjugate entries of the half spectrum."""
-        last = self.grid_shape[-1]
-        half = last // 2 + 1
-        planes = [0] + ([last // 2] if last % 2 == 0 and last > 1 else [])
-        other = self.grid_shape[:-1]
-        count = math.prod(other)
-        flat_other = np.arange(count, dtype=np.int64)
-        partner_other = partner_indices(other, flat_other) if other else flat_other
-        noncanonical, selfconjugate = [], []
-        for plane in planes:
-            flat = flat_other * half + plane
-            noncanonical.append(flat[partner_other < flat_other])
-            selfconjugate.append(flat[partner_other == flat_other])
-        self._noncanonical = np.concatenate(noncanonical)
-        self._selfconjugate = np.concatenate(selfconjugate)
-        self._plane_of_last = np.zeros(half, dtype=bool)
-        self._plane_of_last[planes] = True
+        self._noncanonical, self._selfconjugate, self._plane_of_last = _plane_fixes(self.grid_shape)
 
     def _weights(self, support):
         """(analysis scale a, synthesis scale b) of coefficient entries ``support``.
