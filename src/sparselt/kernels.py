@@ -270,6 +270,8 @@ def pixel_block_cell_sums(cells, weights, spp, resolution, grid_shape):
     present = where < found.size
     present[present] = found[where[present]] == reached[present]
     sums[where[present]], counts[where[present]] = totals[present], numbers[present]
+    if present.all():
+        return found, sums, counts
     insert = np.searchsorted(found, reached[~present])
     return (np.insert(found, insert, reached[~present]), np.insert(sums, insert, totals[~present]),
             np.insert(counts, insert, numbers[~present]))
