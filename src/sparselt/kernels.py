@@ -13,6 +13,13 @@ loop here runs on every core into a buffer the caller owns and computes
 exactly what the NumPy expression computes (the same float operations, no
 fast-math; the power itself is still NumPy's), so results are bit-identical.
 
+The same holds for the other hot loops issue 24's profiles found: the slot
+table of the SFT's sample caches (:class:`~sparselt.recovery.sample_cache.IndexedValues`:
+numbering, lookups, row gathers), the cell means of pixel samples summed per
+image-cell block (bincount's sums without its grid-size arrays), and the
+global guided mode's counting sort of lanes by film pixel and its splat in
+lane order (the same bytes for the same seed).
+
 Kernels compile on first use and are cached on disk by numba; :func:`warm_up`
 compiles them all (the comparison's warm-up calls it, so that no timed run
 pays compilation).
@@ -141,9 +148,10 @@ def _compiled():
                 out[target, 1] += second[lane]
                 out[target, 2] += third[lane]
 
-        _KERNELS = {"ordered_sums": ordered_sums, "block_sums": block_sums, "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
-                    "counting_order": counting_order, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
-                    "mark_non_positive": mark_non_positive, "zero_marked": zero_marked}
+        _KERNELS = {"gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
+                    "mark_non_positive": mark_non_positive, "zero_marked": zero_marked,
+                    "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
+                    "block_sums": block_sums, "counting_order": counting_order, "ordered_sums": ordered_sums}
     return _KERNELS
 
 
@@ -192,7 +200,10 @@ def squared_magnitude(spectrum, out):
 
 
 def number_slots(slots, indices, first):
-    """``slots[indices] = first + 1 + arange(len(indices))``: the slot table of :class:`~sparselt.recovery.sample_cache.IndexedValues`."""
+    """``slots[indices] = first + 1 + arange(len(indices))``: numbering new entries of a slot table.
+
+    The table of :class:`~sparselt.recovery.sample_cache.IndexedValues` (0 = not read, else position + 1).
+    """
     if indices.size < PARALLEL_MINIMUM:
         slots[indices] = np.arange(first + 1, first + 1 + indices.size)
     else:
@@ -205,7 +216,8 @@ def gather_slotted(values, slots, indices):
     if indices.size < PARALLEL_MINIMUM:
         np.take(values, slots[indices] - 1, axis=0, out=out)
     else:
-        _compiled()["gather_slotted"](values.reshape(values.shape[0], -1), slots, indices, out.reshape(indices.size, -1))
+        _compiled()["gather_slotted"](values.reshape(values.shape[0], -1), slots, indices,
+                                      out.reshape(indices.size, -1))
     return out
 
 
@@ -287,7 +299,8 @@ def ordered_sums(targets, channels, bins):
     if targets.size and int(targets.max()) >= bins:
         raise ValueError(f"targets must be below bins={bins}, got {int(targets.max())}")
     out = np.zeros((int(bins), 3), dtype=np.float32)
-    _compiled()["ordered_sums"](targets, *(np.ascontiguousarray(channel, dtype=np.float32) for channel in channels), out)
+    first, second, third = (np.ascontiguousarray(channel, dtype=np.float32) for channel in channels)
+    _compiled()["ordered_sums"](targets, first, second, third, out)
     return out
 
 
