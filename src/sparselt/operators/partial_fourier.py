@@ -181,13 +181,9 @@ class PartialFourier(LinearOperator):
         self._spectrum_out = np.empty(self.coefficient_shape, dtype=self.coefficient_dtype)  # analysis output
         self._energy = None  # proxy energy, allocated on first use
         if self.real:
-            self._plane_fixes()
+            self._noncanonical, self._selfconjugate, self._plane_of_last = _plane_fixes(self.grid_shape)
 
     # -- real half-spectrum bookkeeping ------------------------------------
-
-    def _plane_fixes(self):
-        """Flat indices of the non-canonical and the self-conjugate entries of the half spectrum."""
-        self._noncanonical, self._selfconjugate, self._plane_of_last = _plane_fixes(self.grid_shape)
 
     def _weights(self, support):
         """(analysis scale a, synthesis scale b) of coefficient entries ``support``.

@@ -55,18 +55,15 @@ class IndexedValues:
         """Every index read, in reading order."""
         return self._indices[:self.count]
 
-    def _known(self, indices):
-        if self.dense:
-            return self._slots[indices] != 0
-        where = np.minimum(np.searchsorted(self._sorted, indices), max(self._sorted.size - 1, 0))
-        return self._sorted[where] == indices if self._sorted.size else np.zeros(indices.size, dtype=bool)
-
     def missing(self, indices):
         """The distinct indices among ``indices`` not read yet, sorted."""
         indices = np.asarray(indices, dtype=np.int64)
         if self.dense:
             return _distinct_sorted(kernels.unnumbered(self._slots, np.ascontiguousarray(indices)))
-        return _distinct_sorted(indices[~self._known(indices)])
+        if not self._sorted.size:
+            return _distinct_sorted(indices)
+        where = np.minimum(np.searchsorted(self._sorted, indices), self._sorted.size - 1)
+        return _distinct_sorted(indices[self._sorted[where] != indices])
 
     def add(self, indices, values):
         """Record ``values`` at new, distinct, sorted ``indices``."""
