@@ -29,11 +29,10 @@ import argparse
 import statistics
 import time
 
-from sparselt.methods import Budget, ComparisonContext, get_method
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
 from sparselt.methods.pixel_samples import draw_pixel_samples
-from sparselt.rendering import mitsuba_backend
-from sparselt.rendering.mitsuba_backend import AUXILIARY_QUANTITIES
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import AUXILIARY_QUANTITIES, MitsubaScene
 from sparselt.rendering.scenes import get_scene
 
 CASES = (("aaf-dof", "dof-sculptures", "dof"), ("aaf-indirect", "courtyard", "indirect"))
@@ -62,26 +61,25 @@ def main():
           f"<= {TARGET:.0%} of pt at the same spp")
     for name, scene_name, kind in CASES:
         spec = get_scene(scene_name)
-        scene = mitsuba_backend.MitsubaScene(spec, (size, size))
+        scene = MitsubaScene(spec, (size, size))
         layout = path_layout(kind, 3, thin_lens=scene.camera.thin_lens)
         context = ComparisonContext(scene=scene, layout=layout, kind=kind, grid_shape=(size, size, 16, 16),
                                     resolution=(size, size), max_depth=3)
-        method, baseline = get_method(name), get_method("pt")
-        uniform_context = context.with_options(method.Options(pilot_fraction=1.0))
-        adaptive_context = context.with_options(method.Options())
-        method.warm_up(adaptive_context)
+        method, uniform_method, baseline = get_method(name), get_method(name, options={"pilot_fraction": 1.0}), \
+            get_method("pt")
+        method.warm_up(context)
         baseline.warm_up(context)
         draw_pixel_samples(context, Budget(1, 0))
         for spp in spps:
             # Interleaved per seed, so that a slow spell of the shared machine hits every variant alike.
             pt, plain, uniform, adaptive, auxiliary = [], [], [], [], []
             for seed in range(1, arguments.repeats + 1):
-                pt.append(baseline.run(context, Budget(spp, seed)).total_seconds)
+                pt.append(run_timed(baseline, context, Budget(spp, seed)).total_seconds)
                 plain.append(_timed(lambda: draw_pixel_samples(context, Budget(spp, seed))))
                 auxiliary.append(_timed(lambda: draw_pixel_samples(context, Budget(spp, seed),
                                                                    auxiliary=_available(layout))))
-                uniform.append(method.run(uniform_context, Budget(spp, seed)))
-                adaptive.append(method.run(adaptive_context, Budget(spp, seed)).total_seconds)
+                uniform.append(run_timed(uniform_method, context, Budget(spp, seed)))
+                adaptive.append(run_timed(method, context, Budget(spp, seed)).total_seconds)
             pt, plain = statistics.median(pt), statistics.median(plain)
             total = statistics.median(run.total_seconds for run in uniform)
             phases = {phase: statistics.median(run.seconds[phase] for run in uniform) for phase in uniform[0].seconds}

@@ -25,16 +25,16 @@ import os
 import tempfile
 
 from sparselt.experiments.compare import ComparisonConfig, compare
-from sparselt.methods import Budget, ComparisonContext, get_method
-from sparselt.rendering import mitsuba_backend
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 from sparselt.rendering.scenes import get_scene
 
 
 def method_phases(context, name, spp, repeats):
-    method = get_method(name)
+    method = get_method(name, grid_shape=context.grid_shape)
     method.warm_up(context)
-    runs = [method.run(context, Budget(spp=spp, seed=seed)) for seed in range(1, repeats + 1)]
+    runs = [run_timed(method, context, Budget(spp=spp, seed=seed)) for seed in range(1, repeats + 1)]
     best = min(runs, key=lambda run: run.total_seconds)
     return best
 
@@ -55,7 +55,7 @@ def main():
 
 def pipeline(arguments, shape):
 
-    scene = mitsuba_backend.MitsubaScene(get_scene("dof-sculptures"), shape[:2])
+    scene = MitsubaScene(get_scene("dof-sculptures"), shape[:2])
     context = ComparisonContext(scene=scene, layout=path_layout("dof", 3, thin_lens=True), kind="dof",
                                 grid_shape=shape, resolution=shape[:2], max_depth=3)  # default options (gamma 0.25)
     pt = method_phases(context, "pt", arguments.spp, arguments.repeats)

@@ -88,7 +88,7 @@ def main():
         peak = max(0, status_bytes("VmHWM") - baseline)
         error = result.relative_error(signal)
         floor = result.transforms * one_fft
-        phases = ", ".join(f"{phase} {seconds:.2f}" for phase, seconds in result.time.items())
+        phases = ", ".join(f"{phase} {seconds:.2f}" for phase, seconds in result.seconds.items())
         print(f"{name:30s} {total:7.2f} {result.iterations:4d} {error:10.2e} {peak / 1e6:8.0f} {result.transforms:5d} "
               f"{total / floor:14.2f}  {phases} ({result.stop_reason})")
         del operator, result, signal, samples

@@ -30,10 +30,10 @@ import time
 
 import numpy as np
 
-from sparselt.methods import Budget, ComparisonContext, get_method
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
 from sparselt.recovery.poisson import screened_poisson, screened_poisson_l1
-from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 from sparselt.rendering.scenes import get_scene
 
 CASES = (("cornell-box", "path", 3), ("courtyard", "indirect", 3), ("cornell-caustics", "path", 5))
@@ -50,7 +50,7 @@ def _timed(function):
 def _sampling(arguments):
     size = arguments.resolution
     for scene_name, kind, depth in CASES:
-        scene = mitsuba_backend.MitsubaScene(get_scene(scene_name), (size, size))
+        scene = MitsubaScene(get_scene(scene_name), (size, size))
         layout = path_layout(kind, depth)
         grid = (size, size) + (2,) * (len(layout.axes) - 2)
         context = ComparisonContext(scene=scene, layout=layout, kind=kind, grid_shape=grid, resolution=(size, size),
@@ -63,7 +63,7 @@ def _sampling(arguments):
         for spp in arguments.spps:
             times = {"pt": [], "base": [], "gradient (4 offsets)": [], "gradient (2 offsets)": []}
             for seed in range(1, arguments.repeats + 1):
-                times["pt"].append(baseline.run(context, Budget(spp, seed)).total_seconds)
+                times["pt"].append(run_timed(baseline, context, Budget(spp, seed)).total_seconds)
                 times["base"].append(_timed(lambda: scene.sample_pixel_statistics(layout, grid, seed, ("rgb",),
                                                                                   spp=spp)))
                 for offsets in (4, 2):

@@ -18,8 +18,8 @@ from sparselt.guiding import ImportanceMap
 from sparselt.measurement import best_time
 from sparselt.methods import Budget, ComparisonContext
 from sparselt.methods.guided import render_with_map
-from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 from sparselt.rendering.scenes import get_scene
 
 
@@ -33,7 +33,7 @@ def main():
     spec = get_scene(arguments.scene)
     if not spec.camera.thin_lens:
         spec = spec.with_lens(0.1, None)
-    scene = mitsuba_backend.MitsubaScene(spec, resolution)
+    scene = MitsubaScene(spec, resolution)
     grid = (arguments.resolution // 2, arguments.resolution // 2, 16, 16)
     context = ComparisonContext(scene=scene, layout=path_layout("dof", 3, thin_lens=True), kind="dof",
                                 grid_shape=grid, resolution=resolution, max_depth=3)

@@ -22,8 +22,8 @@ import os
 import numpy as np
 
 from sparselt.measurement import best_time
-from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 from sparselt.rendering.scenes import get_scene
 
 
@@ -45,7 +45,7 @@ def main():
         spec = get_scene(name)
         for kind in ("path", "dof", "indirect"):
             camera_spec = spec.with_lens(0.05, 4.0) if kind == "dof" and not spec.camera.thin_lens else spec
-            scene = mitsuba_backend.MitsubaScene(camera_spec, (width, width))
+            scene = MitsubaScene(camera_spec, (width, width))
             layout = path_layout(kind, arguments.max_depth, thin_lens=scene.camera.thin_lens)
             extra_axes = len(layout.axes) - 2
             per_axis = max(1, round((arguments.spp / 16) ** (1 / extra_axes))) if extra_axes else 1

@@ -22,8 +22,8 @@ import numpy as np
 
 from sparselt.measurement import best_time
 from sparselt.recovery.path_space import CellOracle
-from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 from sparselt.rendering.scenes import get_scene
 
 
@@ -45,8 +45,8 @@ def main():
     print(f"sample: the full grid {small} ({math.prod(small)} cells)")
     for name in arguments.scenes.split(","):
         spec = get_scene(name)
-        scene = mitsuba_backend.MitsubaScene(spec, shape[:2])
-        small_scene = mitsuba_backend.MitsubaScene(spec, small[:2])
+        scene = MitsubaScene(spec, shape[:2])
+        small_scene = MitsubaScene(spec, small[:2])
         layout = path_layout("path", 3, thin_lens=scene.camera.thin_lens)
         chunk = max(1, (1 << 22) // arguments.spp)
         small_cells = math.prod(small)

@@ -22,8 +22,8 @@ import pathlib
 import numpy as np
 
 from sparselt.images import luminance, srgb_tonemap
-from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 from sparselt.rendering.scenes import get_scene
 from sparselt.report.plotting import pyplot
 
@@ -52,7 +52,7 @@ def main():
     figure, axes = plt.subplots(len(CASES), 2, figsize=(7, 3.4 * len(CASES)))
     size = arguments.resolution
     for row, (scene_name, kind, depth) in enumerate(CASES):
-        scene = mitsuba_backend.MitsubaScene(get_scene(scene_name), (size, size))
+        scene = MitsubaScene(get_scene(scene_name), (size, size))
         image, paired, independent = shift_statistics(scene, path_layout(kind, depth), range(arguments.seeds))
         ratio = paired / np.maximum(independent, 1e-12)
         defined = independent > 0

@@ -8,15 +8,23 @@ Run it beside the built-in methods, at equal time, without touching sparselt::
 
     PYTHONPATH=examples sparselt methods --plugin median_of_means median-of-means
 
+Variants compare several settings in one run, each a row named as written:
+``--methods pt,median-of-means,median-of-means:groups=2``.
+
 What a plug-in needs is here: a :class:`~sparselt.methods.Method` subclass
 decorated with :func:`~sparselt.methods.register`, with ``name``, ``kinds``
-and ``run(context, budget)``; options, if any, declared as a frozen
+and ``run(context, budget, timer)``; options, if any, declared as a frozen
 :class:`~sparselt.methods.MethodOptions` dataclass (the harness validates
-them before anything runs and hands the method a typed object). Every second
-goes in one of the phases of a :class:`~sparselt.methods.PhaseTimer`, every
-path sample is counted in ``path_samples``. The harness times the run
-itself, checks the result and reports it in every table exactly like a
-built-in method's.
+them before anything runs; the instance carries them, typed, as
+``self.options``); what it needs of the comparison, if anything, declared in
+``requires`` (a thin lens, a least spp, ...: checked before anything
+renders). Every second goes in one of the phases of the
+:class:`~sparselt.methods.PhaseTimer` the harness passes as ``timer`` (its
+phases are the result's seconds), every path sample is counted in
+``path_samples``. The harness times the run itself, checks the result and
+reports it in every table exactly like a built-in method's. A seed derived
+from ``budget.seed`` by arithmetic (``budget.seed + 1``) is fine: the
+renderer takes any non-negative seed.
 
 The estimator: each pixel's ``spp`` path samples are split into ``groups``
 groups of consecutive samples; the pixel is the median, per colour channel,
@@ -39,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sparselt.methods import Method, MethodOptions, MethodResult, PhaseTimer, option, register
+from sparselt.methods import Method, MethodOptions, MethodResult, option, register
 from sparselt.methods.pixel_samples import draw_pixel_samples
 
 
@@ -81,14 +89,13 @@ class MedianOfMeans(Method):
     description = "per-pixel median of the means of groups of its path samples (example plug-in; biased)"
     Options = MedianOfMeansOptions
 
-    def run(self, context, budget):
-        options = self.options_of(context)
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
+        options = self.options
         with timer("sampling"):
             samples = draw_pixel_samples(context, budget)
         with timer("reconstruction"):
             width, height = context.resolution
             values = samples.values.reshape(height * width, samples.spp, 3)
             image = median_of_means(values, options.groups).reshape(height, width, 3).astype(np.float32)
-        return MethodResult(image=image, seconds=timer.seconds, path_samples=int(samples.values.shape[0]),
+        return MethodResult(image=image, path_samples=int(samples.values.shape[0]),
                             details={"groups": min(options.groups, samples.spp), "nonfinite_samples": samples.nonfinite})

@@ -43,4 +43,4 @@ if [ "$llvm_from_pypi" = 1 ]; then
 fi
 
 # Fail here, with the fix, rather than in the middle of a test run.
-"$VENV/bin/python" -c "from sparselt.rendering import mitsuba_backend as b; b.initialize(); print('bootstrap: Mitsuba', b.versions()['mitsuba'], 'on', __import__('os').environ['DRJIT_LIBLLVM_PATH'])"
+"$VENV/bin/python" -c "from sparselt.rendering import mitsuba as b; b.initialize(); print('bootstrap: Mitsuba', b.versions()['mitsuba'], 'on', __import__('os').environ['DRJIT_LIBLLVM_PATH'])"

@@ -82,18 +82,27 @@ def test_non_signal_folder_is_not_touched(tmp_path, cornell):
     assert (tmp_path / "thesis.md").read_text() == "precious"
 
 
-def test_unwritable_output_is_refused(tmp_path, cornell):
-    if os.geteuid() == 0:
-        # root writes anywhere; a path under a regular file is unwritable for everyone.
-        (tmp_path / "file").write_text("x")
-        target = tmp_path / "file" / "signal"
-    else:
-        locked = tmp_path / "locked"
-        locked.mkdir()
-        locked.chmod(0o500)
-        target = locked / "signal"
-    with pytest.raises((ValueError, PermissionError, OSError)):
+def test_output_under_a_file_is_refused_naming_it(tmp_path, cornell):
+    # A path under a regular file cannot be created, by root or anyone else.
+    (tmp_path / "file").write_text("x")
+    target = tmp_path / "file" / "signal"
+    with pytest.raises(ValueError) as raised:
         acquire_signal(_config(), target, progress=False, scene_spec=cornell)
+    assert raised.type is ValueError
+    assert str(raised.value) == f"cannot create the output folder {str(target)!r}: Not a directory"
+    assert (tmp_path / "file").read_text() == "x"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_output_in_a_read_only_folder_is_refused_naming_it(tmp_path, cornell):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    target = locked / "signal"
+    with pytest.raises(ValueError) as raised:
+        acquire_signal(_config(), target, progress=False, scene_spec=cornell)
+    assert raised.type is ValueError
+    assert str(raised.value) == f"cannot create the output folder {str(target)!r}: Permission denied"
 
 
 def test_resume_after_kill_gives_the_same_data(tmp_path):
@@ -170,7 +179,7 @@ def test_nonfinite_samples_counted_and_zeroed_on_request(cornell):
     (dict(seed=-1), ValueError, "seed"),
     (dict(shape=(8, 8, 4, 4)), ValueError, "has 4 axes but kind 'path'"),
     (dict(shape=(8,)), ValueError, "two image-plane axes"),
-    (dict(shape=(8, 0, 2, 2)), ValueError, "resolution"),
+    (dict(shape=(8, 0, 2, 2)), ValueError, "every shape entry"),
     (dict(kind="dof", shape=(8, 8, 4, 4)), ValueError, "--aperture"),
     (dict(kind="volumes"), ValueError, "choose one of"),
     (dict(max_depth=0), ValueError, "max_depth"),

@@ -26,7 +26,7 @@ from sparselt.analysis.metrics import luminance_ratio, relative_mean_squared_err
 from sparselt.filters.axis_aligned import (DOF_WIDTH, MINIMUM_SIGMA, axis_aligned_filter, circle_of_confusion,
                                            depth_range, dof_filter_width, indirect_filter_width)
 from sparselt.images import luminance
-from sparselt.methods import Budget, ComparisonContext, get_method
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
 from sparselt.rendering.layout import path_layout
 from sparselt.rendering.scenes import Camera, SceneSpec, Transform, get_scene
 
@@ -85,9 +85,9 @@ def two_planes(*, textured):
 
 
 def _loaded(spec, resolution):
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import MitsubaScene
 
-    return mitsuba_backend.MitsubaScene(spec, resolution)
+    return MitsubaScene(spec, resolution)
 
 
 def _lens_arguments(scene):
@@ -101,8 +101,7 @@ def _context(scene, kind, max_depth, resolution):
 
 
 def _run(name, context, spp, seed):
-    method = get_method(name)
-    return method.run(context.with_options(method.options_of(context)), Budget(spp=spp, seed=seed))
+    return run_timed(get_method(name, grid_shape=context.grid_shape), context, Budget(spp=spp, seed=seed))
 
 
 # --------------------------------------------------------------------------- 1. circle of confusion vs the thin lens
@@ -111,7 +110,7 @@ def _run(name, context, spp, seed):
 @pytest.fixture(scope="module")
 def lens_camera():
     """A thin lens off the world axes, fov along y, on a non-square film (P then comes from Mitsuba's x_fov)."""
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import initialize
 
     camera = Camera(to_world=Transform().look_at([0.3, 0.2, -1.0], [0.5, 0.1, 3.0], [0, 1, 0]), fov=35.0,
                     fov_axis="y", aperture_radius=0.07, focus_distance=2.5)
@@ -119,7 +118,7 @@ def lens_camera():
                      objects={"type": "scene", "sky": {"type": "constant"}})
     scene = _loaded(spec, (WIDTH, HEIGHT))
     world_to_camera = np.linalg.inv(np.array(scene.sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4))
-    return scene, mitsuba_backend.mi, world_to_camera
+    return scene, initialize(), world_to_camera
 
 
 def _camera_rays(lens_camera, film, lens):
@@ -409,7 +408,7 @@ def test_a_guide_tolerance_must_be_positive():
 def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind):
     """sample_pixel_statistics (reduced in the sampling kernel, or for explicit lanes in numpy) equals the
     per-pixel sums, minima and maxima of sample_pixels' per-sample outputs: the same samples, nothing else."""
-    from sparselt.rendering.mitsuba_backend import PIXEL_STATISTICS
+    from sparselt.rendering.mitsuba import PIXEL_STATISTICS
 
     spec = get_scene("cornell-box").with_lens(0.1, 1.0) if kind == "dof" else get_scene("cornell-box")
     scene = _loaded(spec, (12, 10))

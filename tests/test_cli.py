@@ -56,9 +56,9 @@ def test_render_writes_exr_png_and_timing(tmp_path):
     record = json.loads((out / "render.json").read_text())
     assert record["seconds"] > 0 and record["spp"] == 16 and record["resolution"] == [24, 16]
     assert record["provenance"]["versions"]["mitsuba"]
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import initialize
 
-    mi = mitsuba_backend.initialize()
+    mi = initialize()
     exr = np.array(mi.Bitmap(str(out / "image.exr")))
     assert exr.shape == (16, 24, 3) and exr.dtype == np.float32 and exr.max() > 1.0  # HDR: the light
     assert (out / "image.png").exists()
@@ -117,10 +117,11 @@ def test_analyze_a_sampled_signal(tmp_path):
 def test_a_ctrl_c_wrapped_by_a_drjit_custom_operation_is_an_interruption_not_an_error(monkeypatch, capsys):
     """mi.render runs its Python part inside drjit.custom, which turns a KeyboardInterrupt into a RuntimeError
     (the cause of an intermittent exit 2 instead of 130 on Ctrl-C during a compare's reference render)."""
-    import drjit as dr
-
     from sparselt import signal as signal_module
-    from sparselt.rendering import mitsuba_backend  # noqa: F401  (sets the Mitsuba variant)
+    from sparselt.rendering.mitsuba import initialize
+
+    initialize()  # Dr.Jit with its libLLVM, in the variant dr.llvm.ad.Float needs
+    import drjit as dr
 
     class Interrupted(dr.CustomOp):
         def eval(self, value):

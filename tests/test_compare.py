@@ -8,15 +8,16 @@ import dataclasses
 import json
 import math
 import os
+import re
 
 import numpy as np
 import pytest
 
 from sparselt.cli import main
 from sparselt.experiments.compare import RESULT_COLUMNS, ComparisonConfig, compare
-from sparselt.methods import TIME_PHASES, get_method, method_names
+from sparselt.methods import TIME_PHASES, method_class, method_names
 from sparselt.methods.base import WARM_UP_SEED
-from sparselt.methods.cosamp_reconstruction import image_from_samples, reconstruct_luminance
+from sparselt.methods.cosamp_reconstruction import image_from_samples, reconstruct_luminance, thesis_image_from_samples
 from sparselt.methods.pixel_samples import PixelSamples
 
 # Focused far behind the box (an aperture alone now focuses where the central ray hits): the statistics below
@@ -194,7 +195,7 @@ def test_cosamp_pipeline_recovers_an_exactly_sparse_signal():
     assert result.stop_reason == "converged"
     np.testing.assert_allclose(reconstruction, truth, atol=1e-6)
     exact = truth.reshape(16, 16, -1).mean(axis=2).T
-    image, details = image_from_samples(samples, shape, gamma=1.0, sparsity=sparsity, thesis_faithful=True)
+    image, details = thesis_image_from_samples(samples, shape, gamma=1.0, sparsity=sparsity)
     assert details["cosamp_stop_reason"] == "converged"
     np.testing.assert_allclose(image[..., 1], exact, rtol=1e-4)
     # Cross-fitted control variate: each fold alone recovers the signal, which then explains every sample.
@@ -204,9 +205,17 @@ def test_cosamp_pipeline_recovers_an_exactly_sparse_signal():
     np.testing.assert_allclose(image[..., 1], exact, rtol=1e-4)
 
 
-def test_registry_lists_the_built_in_methods():
-    assert {"pt", "samples-mean", "cosamp", "cosamp-thesis"} <= set(method_names())
-    assert get_method("cosamp").needs_resolution_multiple
+def test_the_registry_lists_exactly_the_methods_the_readme_documents():
+    """Every built-in method (registered from ``sparselt.methods``) is in the README's method table, and every name
+    the table gives is registered: adding, renaming or removing a method without its documentation fails here."""
+    from sparselt.methods.registry import method_source
+
+    with open(os.path.join(os.path.dirname(__file__), os.pardir, "README.md"), encoding="utf-8") as handle:
+        readme = handle.read()
+    table = readme.split("| method | what it is |\n|---|---|\n", 1)[1].split("\n\n", 1)[0]
+    documented = {name for line in table.splitlines() for name in re.findall(r"`([a-z0-9-]+)`", line.split(" | ")[0])}
+    built_in = {name for name in method_names() if method_source(name).startswith("sparselt.methods.")}
+    assert documented == built_in
 
 
 def test_an_unknown_method_is_refused_with_every_registered_name():
@@ -281,13 +290,13 @@ def test_timing_repeats_run_in_rounds_and_an_interrupted_run_resumes_between_the
     calls = []
     stop_at = {"call": 4}
     for name in ("pt", "samples-mean"):
-        method = get_method(name)
+        method = method_class(name)
 
-        def logged(context, budget, run=method.run, name=name):
+        def logged(self, context, budget, timer, run=method.run, name=name):
             calls.append((name, budget.spp, budget.seed))
             if len(calls) == stop_at["call"]:
                 raise RuntimeError("stopped")
-            return run(context, budget)
+            return run(self, context, budget, timer)
 
         monkeypatch.setattr(method, "run", logged)
     config = tiny(methods=("pt", "samples-mean"), spps=(4,), seeds=(1,), timing_repeats=3)

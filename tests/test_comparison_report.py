@@ -139,11 +139,21 @@ def test_table_6_for_guided_methods_with_the_thesis_beside(tmp_path):
                            methods=_methods())
     assert [label for label, _ in ours.rows] == ["guided-sft", "guided-sft"]
     assert [cells[2] for _, cells in ours.rows] == ["16", "16"]  # the method's own resolved map_spp
-    assert thesis.kinds == ["thesis"] * 3 and thesis.rows[0] == ("1000x1000", ["489", "238", "199"])
+    # Thesis Table 6.2 beside our budgets, row i pairing its i-th image size with our i-th spp (as reproduce shows it).
+    assert thesis.kinds == ["thesis", "ours"] * 4 + ["ours"]
+    label, cells = thesis.rows[0]
+    pt_40 = [row for row in rows if row["method"] == "pt" and row["spp"] == 40]
+    guided_40 = [row for row in rows if row["method"] == "guided-sft" and row["spp"] == 40]
+    assert label == "1000x1000 / 16x16" and cells[0::2][:3] == ["489", "238", "199"] and cells[1] == "40"
+    assert cells[3] == f"{np.mean([row['seconds_total'] for row in guided_40]):.3f}"
+    assert cells[5] == f"{np.mean([row['seconds_total'] for row in pt_40]):.3f}"
+    label, cells = thesis.rows[2]  # the thesis's third size; we ran two budgets
+    assert label == "4000x4000 / -" and cells[0] == "124" and [cells[index] for index in (1, 3, 5, 7, 8)] == ["-"] * 5
     assert table_6(_rows(), "cornell-caustics", _config(), methods=_methods()) == []
     _, written = _write(tmp_path, rows, _config(kind="path", methods=("pt", "guided-sft")), scene="cornell-caustics")
     assert {"table_6.md", "table_6.csv"} <= set(written)
-    assert "Thesis Table 6.2 (Cornell Box" in (tmp_path / "c" / "table_6.md").read_text()
+    assert "Table 6.2: Execution times for the Cornell Box scene (ours: cornell-caustics = Cornell Box, guided-sft" in (
+        tmp_path / "c" / "table_6.md").read_text()
 
 
 def test_results_table_prints_a_dash_where_pt_does_not_reach():

@@ -93,7 +93,7 @@ def test_hide_emitters_of_the_xml_is_honoured_and_recorded(tmp_path):
     visible = get_scene(write_scene(tmp_path, hide="false"))
     hidden = get_scene(write_scene(tmp_path, hide="true"))
     assert hidden.hide_emitters and not visible.hide_emitters
-    from sparselt.rendering.baseline import render_reference
+    from sparselt.experiments.render import render_reference
 
     shown, _ = render_reference(visible.filename, tmp_path / "a", spp=16, scene_spec=visible)
     dark, _ = render_reference(hidden.filename, tmp_path / "b", spp=16, scene_spec=hidden)

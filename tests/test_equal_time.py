@@ -155,11 +155,11 @@ def test_the_reference_variance_from_its_passes_matches_independent_references(t
     its own passes agrees with the spread between them. Per pixel and channel the ratio of the two estimates is
     noisy (chi-square with 15 and 48 degrees of freedom) and the radiance heavy-tailed, so the test takes the
     median ratio over the lit pixels: near 1 (measured 1.03; bounds far outside its spread)."""
-    from sparselt.rendering import mitsuba_backend
     from sparselt.rendering.baseline import cached_reference, reference_relmse_floor
+    from sparselt.rendering.mitsuba import MitsubaScene
     from sparselt.rendering.scenes import get_scene
 
-    scene = mitsuba_backend.MitsubaScene(get_scene("cornell-box"), (16, 16))
+    scene = MitsubaScene(get_scene("cornell-box"), (16, 16))
     images, variances = [], []
     for seed in range(16):
         image, record = cached_reference(scene, "path", spp=256, seed=seed, progress=False,
@@ -184,14 +184,14 @@ def test_no_path_traced_cell_replays_a_pass_of_the_reference(tmp_path):
     passes, bit for bit, so their mean equalled the reference. Now every pixel's difference is noise of the size
     the passes' own variance predicts: over the lit pixels, the mean squared difference of the two independent
     128 spp estimates over twice the reference's mean estimated variance is about 1 (not 0; measured 0.91)."""
-    from sparselt.rendering import mitsuba_backend
     from sparselt.rendering.baseline import (
         METHOD_SEED_LIMIT, REFERENCE_PASS_SPP, REFERENCE_SEED_BASE, cached_reference, reference_pass_seed)
+    from sparselt.rendering.mitsuba import MitsubaScene
     from sparselt.rendering.scenes import get_scene
 
     assert REFERENCE_SEED_BASE >= 2**31 > (METHOD_SEED_LIMIT - 1) ^ 0x5A5A5A5A
     assert reference_pass_seed(0, 0) == REFERENCE_SEED_BASE and reference_pass_seed(2**14 - 1, 2**16 - 1) == 2**32 - 1
-    scene = mitsuba_backend.MitsubaScene(get_scene("cornell-box"), (16, 16))
+    scene = MitsubaScene(get_scene("cornell-box"), (16, 16))
     reference, record = cached_reference(scene, "path", spp=2 * REFERENCE_PASS_SPP, seed=0, progress=False,
                                          cache_directory=str(tmp_path))
     cells = [scene.render_path(REFERENCE_PASS_SPP, 3, seed)[0].astype(np.float64) for seed in (0, 1)]
@@ -222,21 +222,60 @@ def test_timing_uncertainty_widens_the_ratio_interval():
     assert records["shaky"]["relmse_ratio_ci_high"] > records["steady"]["relmse_ratio_ci_high"] > 0.9
 
 
-def test_every_rung_of_the_ladder_is_run_down_to_one_spp():
-    """The downward ladder once listed 1 spp without running it (a cell with no repeats: compare failed at the
-    end with timing_repeats=1 when a method was faster than PT at 2 spp). Times: 0.01 s per spp."""
-    from types import SimpleNamespace
-
-    from sparselt.experiments.compare import _CellRunner
-
-    runner = _CellRunner.__new__(_CellRunner)
-    runner.config = SimpleNamespace(spps=(4, 8), pt_ladder_max_spp=64, seeds=(1,))
+def _rung_times(per_spp, intercept=0.0, seeds=2):
+    """A deterministic fake PT: ``intercept + per_spp * spp`` seconds at every seed, and the rungs it ran."""
     ran = []
 
     def run_rung(spp):
         ran.append(spp)
-        return [0.01 * spp]
+        return [intercept + per_spp * spp * (1.0 + 0.01 * seed) for seed in range(seeds)]
 
-    ladder = runner._ladder(None, run_rung, [0.005, 0.09])  # a method at 0.005 s: faster than PT at 1 spp
-    assert ladder["spps"][0] == 1 and set(ladder["spps"]) <= set(ran)
-    assert ladder["reached_seconds"] > 0.09 and not ladder["capped"]
+    return run_rung, ran
+
+
+def test_every_rung_of_the_ladder_is_run_down_to_one_spp():
+    """The downward ladder once listed 1 spp without running it (a cell with no repeats: compare failed at the
+    end with timing_repeats=1 when a method was faster than PT at 2 spp). Times: 0.01 s per spp."""
+    from sparselt.experiments.compare import ladder_search
+
+    run_rung, ran = _rung_times(0.01, seeds=1)
+    ladder = ladder_search(run_rung, [0.005, 0.09], smallest_budget=4, maximum_spp=64)  # 0.005 s: below 1 spp's
+    assert ladder["spps"] == [1, 2, 4, 8, 16] and set(ladder["spps"]) <= set(ran)
+    assert ladder["reached_seconds"] == pytest.approx(0.16) and not ladder["capped"]
+    assert ladder["target_seconds"] == 0.09 and ladder["fastest_seconds"] == 0.005 and ladder["max_spp"] == 64
+
+
+def test_the_ladder_doubles_from_half_the_smallest_budget_until_it_passes_every_other_time():
+    from sparselt.experiments.compare import ladder_search
+
+    run_rung, ran = _rung_times(0.01, intercept=0.02)
+    ladder = ladder_search(run_rung, [0.1, 0.5, 0.3], smallest_budget=10, maximum_spp=4096)
+    # 5 spp: 0.07 s; 10: 0.12; 20: 0.22; 40: 0.42; 80: 0.82 > 0.5 (median over the seeds: the mean of two here).
+    assert ladder["spps"] == [5, 10, 20, 40, 80] and ran == [5, 10, 20, 40, 80, 5]
+    assert ladder["reached_seconds"] == pytest.approx(0.82 + 0.005 * 0.8) and not ladder["capped"]
+
+
+def test_the_ladder_runs_two_rungs_at_least_and_stops_at_its_cap():
+    from sparselt.experiments.compare import ladder_search
+
+    run_rung, _ = _rung_times(0.01)
+    assert ladder_search(run_rung, [0.0001], smallest_budget=40, maximum_spp=4096)["spps"][-2:] == [20, 40]
+    run_rung, ran = _rung_times(0.01)
+    ladder = ladder_search(run_rung, [100.0], smallest_budget=8, maximum_spp=64)  # 64 spp: 0.64 s, never 100 s
+    assert ladder["capped"] and ladder["spps"] == [4, 8, 16, 32, 64] and max(ran) == 64
+
+
+def test_the_ladder_resumes_from_a_ladder_already_run():
+    """The second search (after the rounds, medians moved) starts from the top rung and adds rungs above it."""
+    from sparselt.experiments.compare import ladder_search
+
+    run_rung, ran = _rung_times(0.01)
+    ladder = ladder_search(run_rung, [0.5], smallest_budget=8, maximum_spp=4096, start=[4, 8, 16, 32])
+    assert ladder["spps"] == [4, 8, 16, 32, 64] and ran == [32, 64, 4]
+    run_rung, ran = _rung_times(0.01)
+    ladder = ladder_search(run_rung, [0.05, 0.2], smallest_budget=8, maximum_spp=4096, start=[4, 8, 16, 32])
+    assert ladder["spps"] == [4, 8, 16, 32] and ran == [32, 4]  # covered already: the top and bottom rungs read
+    run_rung, ran = _rung_times(0.01)
+    ladder = ladder_search(run_rung, [0.03, 0.2], smallest_budget=8, maximum_spp=4096, start=[4, 8, 16, 32])
+    # A method now faster (0.03 s) than PT's smallest rung (0.04 s): the ladder extends downwards.
+    assert ladder["spps"] == [2, 4, 8, 16, 32] and ran == [32, 4, 2]

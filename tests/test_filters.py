@@ -137,10 +137,10 @@ def test_oidn_lowers_the_error_of_a_4_spp_cornell_box(tmp_path):
     """OIDN (colour + albedo + normal) on a 4 spp render: relMSE against 1024 spp falls several-fold."""
     from sparselt.analysis.metrics import relative_mean_squared_error
     from sparselt.filters import oidn_denoise
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import MitsubaScene
     from sparselt.rendering.scenes import get_scene
 
-    scene = mitsuba_backend.MitsubaScene(get_scene("cornell-box"), (128, 128))
+    scene = MitsubaScene(get_scene("cornell-box"), (128, 128))
     reference, _ = scene.render_path(1024, 3, seed=7)
     noisy, _ = scene.render_path(4, 3, seed=1)
     buffers, seconds = scene.render_aovs(4, seed=1)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sparselt.images import luminance
-from sparselt.methods import Budget, ComparisonContext, get_method
+from sparselt.methods import Budget, ComparisonContext, MethodSetup, get_method, method_class, run_timed
 from sparselt.methods.gradient_domain import gradient_estimates
 from sparselt.recovery.poisson import forward_differences
 from sparselt.rendering.layout import path_layout
@@ -22,9 +22,9 @@ DEPTH = 3
 
 @pytest.fixture(scope="module")
 def scene():
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import MitsubaScene
 
-    return mitsuba_backend.MitsubaScene(get_scene("cornell-box"), (SIZE, SIZE))
+    return MitsubaScene(get_scene("cornell-box"), (SIZE, SIZE))
 
 
 @pytest.fixture(scope="module")
@@ -112,9 +112,10 @@ def test_camera_emission_is_the_part_of_each_path_seen_directly(scene, layout):
 @pytest.mark.parametrize("direct_emission", ["primal", "gradient"])
 def test_gradient_l2_is_unbiased(scene, layout, reference, direct_emission):
     """The method's image over seeds: luminance within 1% and every pixel within 3 standard errors but a few."""
-    method = get_method("gradient-l2")
-    context = _context(scene, layout).with_options(method.Options(direct_emission=direct_emission))
-    runs = np.array([method.run(context, Budget(spp=16, seed=seed)).image for seed in range(32)], dtype=np.float64)
+    method = get_method("gradient-l2", options={"direct_emission": direct_emission})
+    context = _context(scene, layout)
+    runs = np.array([run_timed(method, context, Budget(spp=16, seed=seed)).image for seed in range(32)],
+                    dtype=np.float64)
     mean, error, _ = reference
     ratio = luminance(runs.mean(axis=0)).mean() / luminance(mean).mean()
     per_seed = luminance(runs).mean(axis=(1, 2)) / luminance(mean).mean()
@@ -133,7 +134,7 @@ def test_gradient_l1_lowers_the_error_of_its_own_primal(scene, layout, reference
     mean = reference[0].astype(np.float32)
     l1, primal = [], []
     for seed in range(8):
-        result = method.run(context, Budget(spp=4, seed=seed))
+        result = run_timed(method, context, Budget(spp=4, seed=seed))
         sums, _, _ = scene.sample_gradients(layout, _grid(layout), 4, seed)
         l1.append(relative_mean_squared_error(result.image, mean))
         primal.append(relative_mean_squared_error(gradient_estimates(sums, 4)[0].astype(np.float32), mean))
@@ -144,7 +145,7 @@ def test_gradient_l1_lowers_the_error_of_its_own_primal(scene, layout, reference
 
 
 def test_the_path_count_is_every_base_and_offset_path(scene, layout):
-    result = get_method("gradient-l2").run(_context(scene, layout), Budget(spp=3, seed=1))
+    result = run_timed(get_method("gradient-l2"), _context(scene, layout), Budget(spp=3, seed=1))
     assert result.path_samples == 3 * (5 * SIZE * SIZE - 4 * SIZE)
 
 
@@ -154,11 +155,14 @@ def test_bad_offsets_and_resolution_are_refused(scene, layout):
     context = ComparisonContext(scene=scene, layout=layout, kind="path", grid_shape=(8, 8) + _grid(layout)[2:],
                                 resolution=(8, 8), max_depth=DEPTH)
     with pytest.raises(ValueError, match="film resolution 32x32"):
-        get_method("gradient-l2").run(context, Budget(spp=1, seed=1))
+        run_timed(get_method("gradient-l2"), context, Budget(spp=1, seed=1))
+    with pytest.raises(ValueError, match=r"method 'gradient-l2' renders at the scene's film resolution 32x32, got an "
+                                         r"output resolution 8x8"):  # declared: compare refuses it before rendering
+        get_method("gradient-l2").check_preconditions(MethodSetup.of_context(context))
 
 
 def test_an_offset_count_outside_the_choices_is_refused_before_sampling():
     from sparselt.methods.options import resolve_options
 
     with pytest.raises(ValueError, match=r"option gradient-l2.offsets must be one of 4, 2, got 3"):
-        resolve_options(get_method("gradient-l2").Options, {"offsets": "3"}, grid_shape=(8, 8), owner="gradient-l2")
+        resolve_options(method_class("gradient-l2").Options, {"offsets": "3"}, grid_shape=(8, 8), owner="gradient-l2")

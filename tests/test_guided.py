@@ -10,7 +10,9 @@ from chi_square import chi_square_p_value, sidak_threshold
 from sparselt.guiding import ImportanceMap
 from sparselt.methods import Budget, ComparisonContext
 from sparselt.methods.guided import render_with_map
-from sparselt.rendering import mitsuba_backend
+from sparselt.rendering.mitsuba import MitsubaScene, initialize, warp_points
+from sparselt.rendering.mitsuba.guided import GUIDED_STREAM, film_pixel, global_order, warp_axes
+from sparselt.rendering.mitsuba.lanes import item_lanes
 from sparselt.rendering.layout import path_layout
 from sparselt.rendering.scenes import get_scene
 
@@ -30,7 +32,7 @@ def test_in_kernel_warp_draws_cells_with_the_map_probabilities(shape):
     importance = ImportanceMap(peaky(shape, len(shape)), defensive=0.02)
     count = 200_000
     uniforms = np.random.default_rng(7).random((count, len(shape)))
-    points, cells = mitsuba_backend.warp_points(shape, importance.level_tables(), uniforms)
+    points, cells = warp_points(shape, importance.level_tables(), uniforms)
     assert np.all((points >= 0) & (points < 1))
     np.testing.assert_array_equal(cells, importance.cells_of(points))
     observed = np.bincount(cells, minlength=importance.size)
@@ -43,7 +45,7 @@ def test_in_kernel_conditional_warp_given_image_cells():
     count = 100_000
     image_cell = 4
     uniforms = np.random.default_rng(8).random((count, 2))
-    points, cells = mitsuba_backend.warp_points(shape, importance.level_tables(), uniforms,
+    points, cells = warp_points(shape, importance.level_tables(), uniforms,
                                                 image_cells=np.full(count, image_cell))
     assert np.all(cells // 16 == image_cell)
     expected = importance.pdf.reshape(6, 16)[image_cell]
@@ -53,7 +55,7 @@ def test_in_kernel_conditional_warp_given_image_cells():
 
 @pytest.fixture(scope="module", params=["cornell-box", "cornell-caustics"])
 def path_context(request):
-    scene = mitsuba_backend.MitsubaScene(get_scene(request.param), (24, 24))
+    scene = MitsubaScene(get_scene(request.param), (24, 24))
     grid = (12, 12) + (2,) * 8
     return ComparisonContext(scene=scene, layout=path_layout("path", 3), kind="path", grid_shape=grid,
                              resolution=(24, 24), max_depth=3)
@@ -76,7 +78,7 @@ def test_guided_mean_equals_the_unguided_mean(path_context, mode, defensive):
 
 def test_uniform_map_reproduces_path_tracing_exactly_in_distribution():
     """defensive = 1: the density is 1 everywhere and the per-pixel estimator is plain path tracing."""
-    scene = mitsuba_backend.MitsubaScene(get_scene("cornell-box").with_lens(0.1, None), (16, 16))
+    scene = MitsubaScene(get_scene("cornell-box").with_lens(0.1, None), (16, 16))
     context = ComparisonContext(scene=scene, layout=path_layout("dof", 3, thin_lens=True), kind="dof",
                                 grid_shape=(16, 16, 4, 4), resolution=(16, 16), max_depth=3)
     importance = ImportanceMap(np.random.default_rng(0).random((16, 16, 4, 4)), defensive=1.0)
@@ -130,14 +132,14 @@ def test_global_mode_runs_every_sample_once_grouped_by_film_pixel(path_context):
     importance = ImportanceMap(peaky(path_context.grid_shape, 5), defensive=0.1)
     spp, seed = 4, 3
     tables = importance.level_tables()
-    order = np.asarray(scene._global_order(layout, importance.shape, tables, spp, seed))
-    lanes = scene.width * scene.height * spp
-    assert np.array_equal(np.sort(order), np.arange(lanes))
-    mi, dr = mitsuba_backend.mi, mitsuba_backend.dr
-    _, generator, _ = mitsuba_backend._lanes(scene.width * scene.height, spp, seed, stream=mitsuba_backend.GUIDED_STREAM)
+    order = np.asarray(global_order(scene, layout, importance.shape, tables, spp, seed))
+    lane_count = scene.width * scene.height * spp
+    assert np.array_equal(np.sort(order), np.arange(lane_count))
+    mi = initialize()
+    _, generator, _ = item_lanes(scene.width * scene.height, spp, seed, stream=GUIDED_STREAM)
     uniforms = {name: generator.next_float32() for name in layout.dimensions}
-    mitsuba_backend._warp_axes(importance.shape, tables, uniforms, layout.axes, mi.UInt32(0), 0)  # every level
-    landing = np.asarray(scene._film_pixel(uniforms))
+    warp_axes(importance.shape, tables, uniforms, layout.axes, mi.UInt32(0), 0)  # every level
+    landing = np.asarray(film_pixel(scene, uniforms))
     assert np.all(np.diff(landing[order].astype(np.int64)) >= 0)
     assert np.unique(landing).size > scene.width * scene.height // 2  # the samples spread over the film
 

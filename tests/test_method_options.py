@@ -17,13 +17,15 @@ from sparselt.methods import (
     Method,
     MethodOptions,
     MethodResult,
-    PhaseTimer,
     PluginError,
     get_method,
     load_plugins,
+    method_class,
     method_names,
     option,
+    parse_method_variant,
     resolve_options,
+    variant_file_name,
 )
 from sparselt.methods.contract import check_method
 from sparselt.methods.options import describe_options
@@ -41,16 +43,16 @@ def run_cli(*arguments, pythonpath=(), cwd=None):
 
 # ------------------------------------------------------------------------------------------ declared options
 def test_defaults_resolve_per_method_and_per_grid():
-    cosamp = resolve_options(get_method("cosamp").Options, {}, grid_shape=SHAPE, owner="cosamp")
-    sft = resolve_options(get_method("sft").Options, {}, grid_shape=SHAPE, owner="sft")
+    cosamp = resolve_options(method_class("cosamp").Options, {}, grid_shape=SHAPE, owner="cosamp")
+    sft = resolve_options(method_class("sft").Options, {}, grid_shape=SHAPE, owner="sft")
     assert cosamp.sparsity == 4096 // 200 and cosamp.gamma == 0.25
     assert sft.sparsity == 1 and sft.alpha == 4.0  # K = N/10^4 rounds to 1 here: another default, another option
-    big = resolve_options(get_method("sft").Options, {}, grid_shape=(250, 250, 16, 16), owner="sft")
+    big = resolve_options(method_class("sft").Options, {}, grid_shape=(250, 250, 16, 16), owner="sft")
     assert big.sparsity == 1600
 
 
 def test_text_values_are_parsed_to_the_declared_type():
-    options = resolve_options(get_method("guided-sft").Options, {"map-spp": "3", "mode": "global", "snr": "-2.5"},
+    options = resolve_options(method_class("guided-sft").Options, {"map-spp": "3", "mode": "global", "snr": "-2.5"},
                               grid_shape=SHAPE, owner="guided-sft")
     assert (options.map_spp, options.mode, options.snr) == (3, "global", -2.5)
     assert isinstance(options.map_spp, int)
@@ -72,7 +74,7 @@ def test_text_values_are_parsed_to_the_declared_type():
 ])
 def test_every_refused_value_names_the_option_and_what_is_allowed(name, given, error, message):
     with pytest.raises(error, match=message):
-        resolve_options(get_method(name).Options, given, grid_shape=SHAPE, owner=name)
+        resolve_options(method_class(name).Options, given, grid_shape=SHAPE, owner=name)
 
 
 def test_shared_options_are_declared_once():
@@ -81,10 +83,10 @@ def test_shared_options_are_declared_once():
     from sparselt.methods.guided import GuidingOptions
 
     for name in ("guided-pilot", "guided-cosamp", "guided-bilateral", "guided-sft"):
-        assert issubclass(get_method(name).Options, GuidingOptions)
+        assert issubclass(method_class(name).Options, GuidingOptions)
     for name in ("cosamp", "cosamp-thesis", "cosamp-bilateral", "guided-cosamp", "guided-bilateral"):
-        assert issubclass(get_method(name).Options, CosampOptions)
-    rows = {tuple(row) for name in method_names() for row in describe_options(get_method(name).Options)
+        assert issubclass(method_class(name).Options, CosampOptions)
+    rows = {tuple(row) for name in method_names() for row in describe_options(method_class(name).Options)
             if row[0] == "mode"}
     assert len(rows) == 1  # one help, one default, one range wherever 'mode' appears
 
@@ -138,7 +140,7 @@ def write_module(folder, name, source):
 
 
 PLAIN = """
-    from sparselt.methods import Method, MethodResult, PhaseTimer, register
+    from sparselt.methods import Method, MethodResult, register
     import numpy as np
 
     @register
@@ -146,11 +148,9 @@ PLAIN = """
         name = {name!r}
         kinds = {kinds!r}
         {extra}
-        def run(self, context, budget):
-            timer = PhaseTimer()
+        def run(self, context, budget, timer):
             width, height = context.resolution
-            return MethodResult(image=np.zeros((height, width, 3), np.float32), seconds=timer.seconds,
-                                path_samples=0)
+            return MethodResult(image=np.zeros((height, width, 3), np.float32), path_samples=0)
 """
 
 
@@ -163,6 +163,7 @@ PLAIN = """
     ("fine-name", ("dof",), "baseline = True", r"declares baseline = True, but 'pt' is the baseline already"),
     ("fine-name", ("dof",), "family = 3", r"family must be a word"),
     ("fine-name", ("dof",), "Options = dict", r"must be a frozen dataclass derived from"),
+    ("fine-name", ("dof",), "requires = ('thin lens',)", r"requires must be a tuple of sparselt.methods.preconditions"),
 ])
 def test_a_plugin_that_breaks_the_contract_is_named_in_one_line(tmp_path, monkeypatch, name, kinds, extra, message):
     module = write_module(tmp_path, f"plugin_{abs(hash((name, str(kinds), extra)))}",
@@ -218,7 +219,7 @@ def test_a_plugin_option_whose_default_is_out_of_its_own_range_is_refused(tmp_pa
             name = "grouped"
             kinds = ("dof",)
             Options = Options
-            def run(self, context, budget):
+            def run(self, context, budget, timer):
                 pass
     """)
     with pytest.raises(PluginError, match=r"the default of 'groups' is refused: option grouped.groups must be"):
@@ -231,12 +232,11 @@ class _Undercounting(Method):
     name = "undercounting"
     kinds = ("dof",)
 
-    def run(self, context, budget):
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
         image, seconds = context.scene.render_path(budget.spp, context.max_depth, budget.seed)
-        timer.seconds["sampling"] = seconds
+        timer.seconds["sampling"] += seconds
         width, height = context.resolution
-        return MethodResult(image=image, seconds=timer.seconds, path_samples=width * height * budget.spp // 2)
+        return MethodResult(image=image, path_samples=width * height * budget.spp // 2)
 
 
 class _Untimed(_Undercounting):
@@ -244,10 +244,10 @@ class _Untimed(_Undercounting):
 
     name = "untimed"
 
-    def run(self, context, budget):
+    def run(self, context, budget, timer):
         import time
 
-        result = super().run(context, budget)
+        result = super().run(context, budget, timer)
         time.sleep(0.2)
         width, height = context.resolution
         return dataclasses.replace(result, path_samples=width * height * budget.spp)
@@ -258,19 +258,19 @@ class _Random(_Undercounting):
 
     name = "random"
 
-    def run(self, context, budget):
+    def run(self, context, budget, timer):
         width, height = context.resolution
         return MethodResult(image=np.random.default_rng().random((height, width, 3), dtype=np.float32),
-                            seconds={"sampling": 0.0}, path_samples=0)
+                            path_samples=0)
 
 
 @pytest.fixture(scope="module")
 def context():
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import MitsubaScene
     from sparselt.rendering.layout import path_layout
     from sparselt.rendering.scenes import get_scene
 
-    scene = mitsuba_backend.MitsubaScene(get_scene("cornell-box").with_lens(0.1, 1000.0), SHAPE[:2])
+    scene = MitsubaScene(get_scene("cornell-box").with_lens(0.1, 1000.0), SHAPE[:2])
     return ComparisonContext(scene=scene, layout=path_layout("dof", 3, thin_lens=True), kind="dof",
                              grid_shape=SHAPE, resolution=SHAPE[:2], max_depth=3)
 
@@ -380,4 +380,117 @@ def test_register_and_method_source_for_an_in_process_plugin(tmp_path, monkeypat
                                                        extra=""))
     assert load_plugins(["plugin_fine"]) == ("fine-zero",)
     assert method_source("fine-zero") == "plugin_fine" and get_method("fine-zero").family == "other"
+    assert get_method("fine-zero").options.record() == {} and get_method("fine-zero").label == "fine-zero"
     assert load_plugins(["plugin_fine"]) == ("fine-zero",)  # imported once, its methods named again
+
+
+def test_an_old_style_plugin_is_refused_naming_the_new_signature(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(tmp_path))
+    write_module(tmp_path, "plugin_old_style", """
+        from sparselt.methods import Method, register
+
+        @register
+        class Old(Method):
+            name = "old-style"
+            kinds = ("dof",)
+            def run(self, context, budget):
+                pass
+    """)
+    with pytest.raises(PluginError, match=r"plug-in 'plugin_old_style': method 'old-style' defines run\(self, context, "
+                                          r"budget\); the signature is run\(self, context, budget, timer\)"):
+        load_plugins(["plugin_old_style"])
+
+
+# ------------------------------------------------------------------------------------------ instances and variants
+def test_an_instance_carries_its_resolved_options():
+    cosamp = method_class("cosamp")
+    assert cosamp({"gamma": "0.5"}, grid_shape=SHAPE).options == cosamp.Options(gamma=0.5, sparsity=20)
+    assert cosamp(cosamp.Options(gamma=0.3, sparsity=7)).options.sparsity == 7  # resolved already: kept
+    with pytest.raises(TypeError, match=r"method 'cosamp': option 'sparsity' depends on the grid; give grid_shape"):
+        cosamp({"gamma": 0.5})
+    with pytest.raises(ValueError, match=r"option cosamp.gamma must be a finite number > 0, got -1"):
+        cosamp({"gamma": -1}, grid_shape=SHAPE)
+    aaf = get_method("aaf-dof:width_scale=0.5")
+    assert (aaf.name, aaf.label, aaf.options.width_scale) == ("aaf-dof", "aaf-dof:width_scale=0.5", 0.5)
+    assert get_method("aaf-dof").options.width_scale == 1.0  # another instance, its own options
+
+
+@pytest.mark.parametrize("text, message", [
+    ("cosmap:gamma=0.5", r"unknown method 'cosmap'; registered methods: "),
+    ("cosamp:gama=0.5", r"method variant 'cosamp:gama=0.5': method 'cosamp' has no option 'gama'; its options: "
+                        r"gamma, sparsity"),
+    ("cosamp:gamma", r"'gamma' is not NAME=VALUE \(a variant is written METHOD:NAME=VALUE"),
+    ("cosamp:gamma=", r"'gamma=' is not NAME=VALUE"),
+    ("cosamp:gamma=0.5:gamma=0.3", r"gives option 'gamma' twice"),
+    ("cosamp:gamma=zero", r"method variant 'cosamp:gamma=zero': option cosamp.gamma must be a finite number > 0, "
+                          r"got 'zero'"),
+    ("guided-pilot:mode=sideways", r"option guided-pilot.mode must be one of per-pixel, global, got 'sideways'"),
+    ("pt:gamma=1", r"method 'pt' has no option 'gamma'; its options: none"),
+    ("", r"a method is written METHOD or METHOD:NAME=VALUE"),
+])
+def test_a_bad_variant_names_what_is_wrong_and_what_is_allowed(text, message):
+    with pytest.raises(ValueError, match=message):
+        parse_method_variant(text)
+
+
+def test_variants_parse_and_name_their_files_one_to_one():
+    assert parse_method_variant("cosamp") == ("cosamp", {})
+    assert parse_method_variant("aaf-dof:width-scale=0.5:pilot_fraction=1") == (
+        "aaf-dof", {"width_scale": "0.5", "pilot_fraction": "1"})
+    assert variant_file_name("cosamp") == "cosamp"
+    names = ["cosamp:gamma=0.5", "cosamp:gamma=-0.5", "aaf-dof:width_scale=0.5", "x~3A", "x:", "a/b:c=d e"]
+    stems = [variant_file_name(name) for name in names]
+    assert stems[0] == "cosamp~3Agamma~3D0.5" and len(set(stems)) == len(stems)
+    assert all(set(stem) <= set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-~") for stem in stems)
+
+
+def test_variant_options_take_the_method_options_and_win_over_them():
+    config = ComparisonConfig(scene="cornell-box", kind="dof", shape=SHAPE, aperture=0.1,
+                              methods=("pt", "cosamp", "cosamp:gamma=0.5", "cosamp:sparsity=10", "guided-cosamp"),
+                              options={"*": {"gamma": 0.3}, "cosamp": {"sparsity": 12}})
+    resolved = config.resolved_options()
+    assert (resolved["cosamp"].gamma, resolved["cosamp"].sparsity) == (0.3, 12)
+    assert (resolved["cosamp:gamma=0.5"].gamma, resolved["cosamp:gamma=0.5"].sparsity) == (0.5, 12)
+    assert (resolved["cosamp:sparsity=10"].gamma, resolved["cosamp:sparsity=10"].sparsity) == (0.3, 10)
+    assert resolved["guided-cosamp"].gamma == 0.3
+    assert config.identity()["method_options"]["cosamp:gamma=0.5"] == {"gamma": 0.5, "sparsity": 12}
+    same = dataclasses.replace(config, methods=("pt", "cosamp", "cosamp:gamma=0.3"))
+    with pytest.raises(ValueError, match=r"methods 'cosamp' and 'cosamp:gamma=0.3' are the same estimator"):
+        from sparselt.experiments.compare import validate_config
+
+        validate_config(same)
+
+
+def test_a_comparison_of_variants_names_each_row_as_written(tmp_path):
+    """pt, aaf-dof and aaf-dof at half width: three estimators, rows named as written, files named safely."""
+    rows = ("pt", "aaf-dof", "aaf-dof:width_scale=0.5")
+    out = tmp_path / "variants"
+    code = main(["compare", "--scene", "cornell-box", "--kind", "dof", "--aperture", "0.1", "--shape", "16,16,4,4",
+                 "--methods", ",".join(rows), "--spp", "4", "--seeds", "1", "--reference-spp", "16",
+                 "--timing-repeats", "1", "--out", str(out), "--no-progress"])
+    assert code == 0
+    import csv
+    import json
+
+    with open(out / "results.csv", newline="") as handle:
+        methods = {row["method"] for row in csv.DictReader(handle)}
+    assert methods == set(rows)
+    record = json.loads((out / "compare.json").read_text())
+    assert record["methods"]["aaf-dof:width_scale=0.5"]["options"]["width_scale"] == 0.5
+    assert record["methods"]["aaf-dof:width_scale=0.5"]["method"] == "aaf-dof"
+    assert "method" not in record["methods"]["aaf-dof"]
+    assert record["config"]["identity"]["method_options"]["aaf-dof"]["width_scale"] == 1.0
+    cell = json.loads((out / "cells" / "aaf-dof~3Awidth_scale~3D0.5_spp4_seed1.json").read_text())
+    assert cell["row"]["method"] == "aaf-dof:width_scale=0.5" and cell["options"]["width_scale"] == 0.5
+    assert (out / "images" / "aaf-dof~3Awidth_scale~3D0.5_spp4_seed1.png").exists()
+    assert "aaf-dof:width_scale=0.5" in (out / "index.html").read_text()
+
+
+def test_reproduce_takes_variants_for_chapter_8():
+    from sparselt.experiments.reproduce import chapter_8_rows
+
+    assert chapter_8_rows(["cosamp:gamma=0.5", "aaf-dof", "cosamp:gamma=0.5"]) == ("cosamp:gamma=0.5", "aaf-dof")
+    with pytest.raises(ValueError, match=r"method 'aaf-indirect' does not support depth of field"):
+        chapter_8_rows(["aaf-indirect"])
+    with pytest.raises(ValueError, match=r"method 'cosamp' has no option 'gama'"):
+        chapter_8_rows(["cosamp:gama=0.5"])

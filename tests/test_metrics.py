@@ -268,11 +268,26 @@ def test_reference_exposure_maps_99th_percentile_of_luminance_to_point_nine():
     assert reference_exposure(np.zeros((0, 3))) == 1.0
 
 
-def test_visualize_uses_the_shared_exposure():
+def test_show_writes_its_picture_at_the_shared_exposure():
+    """``sparselt show`` exposes a signal's image as compare exposes its reference: its 99th percentile of
+    luminance (the channels' mean) at 0.9, not by a convention of its own."""
+    from types import SimpleNamespace
+
     from sparselt import visualize
 
-    assert visualize.reference_exposure is reference_exposure
-    assert not hasattr(visualize, "_exposure")
+    image = hdr_image(13)
+    written = {}
+
+    class Folder:
+        def write_png(self, name, picture, *, exposure):
+            written[name] = (picture, exposure)
+            return name
+
+    signal = SimpleNamespace(image=lambda client=None: image, axes=("x", "y"), shape=(40, 32))
+    assert visualize._write_pictures(signal, Folder(), 4, None) == ["image.png"]
+    picture, exposure = written["image.png"]
+    np.testing.assert_array_equal(picture, image)
+    assert np.percentile(image.mean(axis=-1) * exposure, 99) == pytest.approx(0.9, rel=1e-12)
 
 
 def test_display_image_is_the_srgb_curve_at_reference_exposure():

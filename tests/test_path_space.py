@@ -10,16 +10,16 @@ from sparselt.experiments.sft_path_space import Table61Config, validate
 from sparselt.fourier.sparse import SparseFourier
 from sparselt.recovery.lattice import lattice_points
 from sparselt.recovery.path_space import CellOracle, lattice_image, largest_energy_fraction, sft_path_space
-from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.acquire import AcquisitionConfig, acquire_signal
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 
 SHAPE = (16, 16) + (2,) * 8
 
 
 @pytest.fixture(scope="module")
 def rendered(cornell):
-    scene = mitsuba_backend.MitsubaScene(cornell, SHAPE[:2])
+    scene = MitsubaScene(cornell, SHAPE[:2])
     return scene, path_layout("path", 3, thin_lens=scene.camera.thin_lens)
 
 
@@ -112,7 +112,7 @@ def test_compressibility_is_one_for_a_sparse_signal_and_small_for_noise():
 
 
 @pytest.mark.parametrize("changes, error, message", [
-    (dict(kind="volumes"), ValueError, "kinds path"),
+    (dict(kind="volumes"), ValueError, "unknown signal kind .volumes.; choose one of path"),
     (dict(shape=(8,)), ValueError, "image-plane"),
     (dict(shape=(8, 8, 2, 2)), ValueError, "at least 11x11"),
     (dict(shape=(2**16, 2**16)), ValueError, "2\\*\\*31"),

@@ -121,7 +121,7 @@ def test_cosamp_recovers_exactly_sparse_signals(seed, shape, real):
     assert result.relative_error(signal) <= 1e-5
     assert result.stop_reason == "converged"
     assert result.samples == indices.size and result.iterations <= 30
-    assert set(result.time) == {"proxy", "select", "least_squares", "prune", "residual"}
+    assert set(result.seconds) == {"proxy", "select", "least_squares", "prune", "residual"}
     assert result.estimate.sparsity <= count + 1
 
 

@@ -17,7 +17,7 @@ import pytest
 from sparselt.report import Table
 from sparselt.report.page import STYLE
 from sparselt.report.table import thesis_display_text
-from sparselt.thesis_numbers import thesis_tables
+from sparselt.thesis.numbers import thesis_tables
 
 HOSTILE = 'a, "quoted" | piped\nsecond line'
 

@@ -16,21 +16,21 @@ import math
 import numpy as np
 import pytest
 
-from sparselt.rendering import mitsuba_backend
 from sparselt.rendering.acquire import AcquisitionConfig, acquire_signal
 from sparselt.rendering.layout import path_layout
+from sparselt.rendering.mitsuba import MitsubaScene
 
 WIDTH = 32
 
 
 @pytest.fixture(scope="module")
 def cornell_scene(cornell):
-    return mitsuba_backend.MitsubaScene(cornell, (WIDTH, WIDTH))
+    return MitsubaScene(cornell, (WIDTH, WIDTH))
 
 
 @pytest.fixture(scope="module")
 def cornell_lens_scene(cornell):
-    return mitsuba_backend.MitsubaScene(cornell.with_lens(0.08, 3.5), (WIDTH, WIDTH))
+    return MitsubaScene(cornell.with_lens(0.08, 3.5), (WIDTH, WIDTH))
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +84,7 @@ def test_pixel_error_falls_as_one_over_spp(cornell_scene):
     """Per-pixel MSE against a 16384-spp reference, at 8, 32 and 128 samples per pixel."""
     width = 16
     scene = cornell_scene
-    small = mitsuba_backend.MitsubaScene(scene.spec, (width, width))
+    small = MitsubaScene(scene.spec, (width, width))
     reference = small.render_path(16384, 3, seed=5)[0].astype(np.float64)
     shape = (width, width, 2, 2)
     samples_per_pixel = []
@@ -115,9 +115,9 @@ def test_same_seed_same_signal_whatever_the_chunking(cornell):
 
 def test_camera_rays_are_coherent_packets_except_behind_a_wide_lens():
     """Embree's coherent mode for camera rays (issue 24): pinholes and narrow lenses yes, dof-sculptures' lens no."""
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import coherent_camera_rays
     from sparselt.rendering.scenes import get_scene
 
-    assert mitsuba_backend.coherent_camera_rays(get_scene("cornell-box").camera)
-    assert mitsuba_backend.coherent_camera_rays(get_scene("cornell-box").with_lens(0.05, 4.0).camera)
-    assert not mitsuba_backend.coherent_camera_rays(get_scene("dof-sculptures").camera)
+    assert coherent_camera_rays(get_scene("cornell-box").camera)
+    assert coherent_camera_rays(get_scene("cornell-box").with_lens(0.05, 4.0).camera)
+    assert not coherent_camera_rays(get_scene("dof-sculptures").camera)

@@ -14,10 +14,13 @@ import pytest
 from sparselt.cli import build_parser, main
 from sparselt.experiments.compare import ComparisonConfig, validate_config
 from sparselt.experiments.sft_path_space import Table61Config
+from sparselt.image_io import write_exr
 from sparselt.rendering import identity as identity_module
-from sparselt.rendering import mitsuba_backend, scenes
+from sparselt.rendering import scenes
 from sparselt.rendering.acquire import AcquisitionConfig, acquire_signal
-from sparselt.rendering.baseline import cached_reference, render_reference
+from sparselt.rendering.mitsuba import MitsubaScene
+from sparselt.experiments.render import render_reference
+from sparselt.rendering.baseline import cached_reference
 from sparselt.rendering.identity import scene_identity
 from sparselt.rendering.meshes import box, write_ply
 from sparselt.rendering.scenes import get_scene
@@ -48,7 +51,7 @@ def write(path, text):
 
 
 def write_texture(path, value):
-    mitsuba_backend.write_exr(str(path), np.full((4, 4, 3), value, dtype=np.float32))
+    write_exr(str(path), np.full((4, 4, 3), value, dtype=np.float32))
 
 
 @pytest.fixture
@@ -66,7 +69,7 @@ def textured_scene(tmp_path):
 
 
 def reference(spec, cache, spp=4):
-    loaded = mitsuba_backend.MitsubaScene(spec, SIZE)
+    loaded = MitsubaScene(spec, SIZE)
     return cached_reference(loaded, "path", spp=spp, max_depth=3, progress=False, cache_directory=str(cache))
 
 
@@ -188,7 +191,7 @@ def test_referenced_file_that_is_not_a_mesh_is_refused_before_loading(tmp_path, 
     name = os.path.relpath(target, tmp_path) if os.path.isabs(target) else target  # ../../../etc/passwd
     xml = _mesh_scene(tmp_path, plugin, name)
     with pytest.raises(ValueError, match=complaint) as error:
-        mitsuba_backend.MitsubaScene(get_scene(xml), SIZE)
+        MitsubaScene(get_scene(xml), SIZE)
     message = str(error.value)
     assert xml in message and f'<shape type="{plugin}" id="part">' in message
     assert os.path.normpath(os.path.join(tmp_path, name)) in message
@@ -197,13 +200,13 @@ def test_referenced_file_that_is_not_a_mesh_is_refused_before_loading(tmp_path, 
 def test_missing_include_and_texture_are_named(tmp_path):
     xml = write(tmp_path / "scene.xml", scene_xml(SPHERE + '  <include filename="lights/sky.xml"/>\n'))
     with pytest.raises(ValueError, match=r"<include filename=\"lights/sky.xml\"> references .*sky.xml', which does not"):
-        mitsuba_backend.MitsubaScene(get_scene(xml), SIZE)
+        MitsubaScene(get_scene(xml), SIZE)
     (tmp_path / "notes.exr").write_text("not an image")
     texture = ('  <shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance">'
                '<string name="filename" value="notes.exr"/></texture></bsdf></shape>\n')
     xml = write(tmp_path / "scene.xml", scene_xml(SPHERE + texture))
     with pytest.raises(ValueError, match=r"<texture type=\"bitmap\" name=\"reflectance\"> references .*notes.exr', which is not an image"):
-        mitsuba_backend.MitsubaScene(get_scene(xml), SIZE)
+        MitsubaScene(get_scene(xml), SIZE)
 
 
 def test_real_meshes_pass_the_check(tmp_path):
@@ -212,7 +215,7 @@ def test_real_meshes_pass_the_check(tmp_path):
     shapes = ('  <shape type="ply"><string name="filename" value="mesh.ply"/></shape>\n'
               '  <shape type="obj"><string name="filename" value="mesh.obj"/></shape>\n')
     xml = write(tmp_path / "scene.xml", scene_xml(SPHERE + shapes))
-    assert len(mitsuba_backend.MitsubaScene(get_scene(xml), SIZE).scene.shapes()) == 3
+    assert len(MitsubaScene(get_scene(xml), SIZE).scene.shapes()) == 3
 
 
 # -- case 13 (c): a sensor sparselt cannot sample is named by its type ----------------------------------------
@@ -223,7 +226,7 @@ def test_irradiancemeter_is_named_by_its_sensor_type(tmp_path):
                 '    <film type="hdrfilm"><integer name="width" value="1"/><integer name="height" value="1"/>'
                 '<rfilter type="box"/></film>\n  </sensor>\n' + SPHERE + "</scene>\n")
     with pytest.raises(ValueError, match="sensor is of type 'irradiancemeter'") as error:
-        mitsuba_backend.MitsubaScene(get_scene(xml), SIZE)
+        MitsubaScene(get_scene(xml), SIZE)
     assert "'perspective' or 'thinlens'" in str(error.value) and "llvm" not in str(error.value)
 
 
@@ -232,13 +235,13 @@ def test_irradiancemeter_is_named_by_its_sensor_type(tmp_path):
 
 def test_aperture_alone_focuses_on_the_scene_and_is_recorded(tmp_path):
     xml = write(tmp_path / "scene.xml", scene_xml(SPHERE))
-    loaded = mitsuba_backend.MitsubaScene(get_scene(xml).with_lens(0.1), SIZE)
+    loaded = MitsubaScene(get_scene(xml).with_lens(0.1), SIZE)
     assert loaded.camera.thin_lens and loaded.camera.focus_distance == pytest.approx(4.0, abs=1e-4)  # sphere at 5 - 1
     # An explicit focus distance wins; so does a thin-lens scene camera's own.
-    assert mitsuba_backend.MitsubaScene(get_scene(xml).with_lens(0.1, 7.0), SIZE).camera.focus_distance == 7.0
+    assert MitsubaScene(get_scene(xml).with_lens(0.1, 7.0), SIZE).camera.focus_distance == 7.0
     own = write(tmp_path / "own.xml", scene_xml(SPHERE, sensor="thinlens", lens='\n    <float name="aperture_radius" '
                                                 "value=\"0.2\"/>\n    <float name=\"focus_distance\" value=\"9\"/>"))
-    assert mitsuba_backend.MitsubaScene(get_scene(own).with_lens(0.1), SIZE).camera.focus_distance == pytest.approx(9.0)
+    assert MitsubaScene(get_scene(own).with_lens(0.1), SIZE).camera.focus_distance == pytest.approx(9.0)
     # The value used is what render.json and the signal's metadata record.
     _, record = render_reference(xml, str(tmp_path / "render"), spp=2, aperture=0.1, resolution=SIZE)
     assert record["focus_distance"] == pytest.approx(4.0, abs=1e-4)
@@ -250,13 +253,13 @@ def test_aperture_alone_focuses_on_the_scene_and_is_recorded(tmp_path):
 
 
 def test_aperture_alone_on_the_built_in_cornell_box_focuses_on_the_box(cornell):
-    camera = mitsuba_backend.MitsubaScene(cornell.with_lens(0.05), SIZE).camera
+    camera = MitsubaScene(cornell.with_lens(0.05), SIZE).camera
     assert 3.0 < camera.focus_distance < 4.9  # the large box, in front of the back wall at 4.9; not 1000
 
 
 def test_central_ray_that_misses_keeps_the_focus_distance_and_says_so(tmp_path, capsys):
     xml = write(tmp_path / "scene.xml", scene_xml(SPHERE, target=10))  # looking away from the sphere
-    loaded = mitsuba_backend.MitsubaScene(get_scene(xml).with_lens(0.1), SIZE)
+    loaded = MitsubaScene(get_scene(xml).with_lens(0.1), SIZE)
     assert loaded.camera.focus_distance == 1000.0
     assert "hits nothing" in capsys.readouterr().err
 
@@ -281,8 +284,8 @@ def parameter_scene(tmp_path):
 
 def test_undefined_parameter_names_it_and_shows_how_to_pass_it(parameter_scene):
     with pytest.raises(ValueError, match=r"uses parameter \$spp without a default; pass it as -D spp=VALUE"):
-        mitsuba_backend.MitsubaScene(get_scene(parameter_scene), SIZE)
-    loaded = mitsuba_backend.MitsubaScene(get_scene(parameter_scene).with_parameters([("spp", "8")]), SIZE)
+        MitsubaScene(get_scene(parameter_scene), SIZE)
+    loaded = MitsubaScene(get_scene(parameter_scene).with_parameters([("spp", "8")]), SIZE)
     assert loaded.spec.parameters == (("spp", "8"),)
 
 
@@ -300,7 +303,7 @@ def test_parameters_resolve_referenced_file_names(tmp_path):
     shape = '  <shape type="ply"><string name="filename" value="$mesh.ply"/></shape>\n'
     spec = get_scene(write(tmp_path / "scene.xml", scene_xml(SPHERE + shape))).with_parameters({"mesh": "bunny"})
     assert str(tmp_path / "bunny.ply") in scene_identity(spec)["files"]
-    assert len(mitsuba_backend.MitsubaScene(spec, SIZE).scene.shapes()) == 2
+    assert len(MitsubaScene(spec, SIZE).scene.shapes()) == 2
 
 
 @pytest.mark.parametrize("parameters, error, message", [
@@ -332,7 +335,7 @@ def test_every_command_taking_a_scene_takes_repeatable_parameters():
 
 
 def test_parameters_travel_through_every_configuration(parameter_scene):
-    spec = validate_config(ComparisonConfig(scene=parameter_scene, kind="path", shape=(16, 16), methods=("pt",),
+    spec = validate_config(ComparisonConfig(scene=parameter_scene, kind="path", shape=(16, 16) + (2,) * 8, methods=("pt",),
                                             scene_parameters=(("spp", "4"),)))
     assert spec.parameters == (("spp", "4"),)
     assert Table61Config(scene=parameter_scene, scene_parameters=(("spp", "4"),)).record()["scene_parameters"]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sparselt.rendering import mitsuba_backend
+from sparselt.rendering.mitsuba import MitsubaScene, initialize, sensor_dictionary, to_mitsuba_dict
 from sparselt.rendering.scenes import SceneSpec, get_scene, scene_names
 
 
@@ -24,9 +24,9 @@ def test_get_scene_invalid_input(tmp_path, arguments, error, message):
 
 
 def test_cornell_box_is_exactly_mitsubas(cornell):
-    mi = mitsuba_backend.initialize()
+    mi = initialize()
     reference = mi.cornell_box()
-    ours = mitsuba_backend.to_mitsuba_dict(cornell.objects)
+    ours = to_mitsuba_dict(cornell.objects)
     for key, value in reference.items():
         if key in ("sensor", "integrator", "type"):
             continue
@@ -38,7 +38,7 @@ def test_cornell_box_is_exactly_mitsubas(cornell):
         assert stripped == {k: v for k, v in mine.items() if k != "to_world"}, key
     assert set(ours) - {"type"} == set(reference) - {"sensor", "integrator", "type"}
     sensor = reference["sensor"]
-    ours_sensor = mitsuba_backend.sensor_dictionary(cornell.camera, 256, 256)
+    ours_sensor = sensor_dictionary(cornell.camera, 256, 256)
     assert np.array_equal(np.array(sensor["to_world"].matrix), np.array(ours_sensor["to_world"].matrix))
     for key in ("fov", "fov_axis", "near_clip", "far_clip"):
         assert sensor[key] == ours_sensor[key]
@@ -72,7 +72,7 @@ def test_scene_file_camera_is_read_back(tmp_path):
     )
     spec = get_scene(str(xml))
     assert isinstance(spec, SceneSpec) and spec.filename == str(xml)
-    scene = mitsuba_backend.MitsubaScene(spec, (20, 10))
+    scene = MitsubaScene(spec, (20, 10))
     assert scene.camera.thin_lens and abs(scene.camera.aperture_radius - 0.2) < 1e-6
     assert abs(scene.camera.focus_distance - 4.0) < 1e-5
     image, _ = scene.render_path(4, 2)

@@ -1,6 +1,7 @@
 """Sparse Fourier Transform (thesis 2.3) and rank-1 lattice reduction (thesis 6.1.1)."""
 
 import dataclasses
+import time
 
 import numpy as np
 import pytest
@@ -175,12 +176,38 @@ def test_result_record():
     assert isinstance(result, SparseFourierTransformResult)
     with pytest.raises(dataclasses.FrozenInstanceError):
         result.samples = 0
-    assert set(result.time) == {"setup", "support", "magnitude", "oracle"}
-    assert all(value >= 0 for value in result.time.values())
+    assert set(result.seconds) == {"setup", "support", "magnitude", "oracle"}
     assert result.iterations == len(result.residual_history) >= 1
     assert len(result.bins) >= result.iterations
     assert result.samples_per_coefficient == result.samples / 10
     assert result.parameters["alpha"] == 4.0 and result.parameters["seed"] == 0
+
+
+class SleepingOracle(CountingOracle):
+    """Sleeps a known time per call: oracle time the solver must book as ``oracle``, never in its own phases."""
+
+    SECONDS = 0.05
+
+    def __call__(self, indices):
+        time.sleep(self.SECONDS)
+        return super().__call__(indices)
+
+
+def test_phase_times_add_up_to_the_measured_time_and_the_oracle_is_booked_apart():
+    """The docstring's promise: setup, support, magnitude and oracle add up to the total; the oracle's own time
+    (here a known sleep per call) is in ``oracle`` and nowhere else."""
+    _, signal = sparse_signal(2 ** 14, 10, seed=0)
+    oracle = SleepingOracle(signal)
+    start = time.perf_counter()
+    result = sft(oracle, 2 ** 14, 10, seed=0)
+    wall = time.perf_counter() - start
+    slept = len(oracle.requests) * SleepingOracle.SECONDS
+    assert len(oracle.requests) >= 2
+    assert slept <= result.seconds["oracle"] <= wall
+    computation = result.seconds["setup"] + result.seconds["support"] + result.seconds["magnitude"]
+    # Had the oracle's sleeps been counted in a computing phase too, the phases would add up to more than the wall.
+    assert computation <= wall - slept
+    assert sum(result.seconds.values()) == pytest.approx(wall, rel=0.2)
 
 
 def test_same_seed_same_result():

@@ -3,8 +3,8 @@ verdict generator says 'same' for numbers that go the thesis's way and 'OPPOSITE
 
 import pytest
 
-from sparselt.thesis_findings import figure_finding, judge, table_claim, table_claims, thesis_findings, thesis_quantity
-from sparselt.thesis_numbers import thesis_tables
+from sparselt.thesis.findings import figure_finding, judge, table_claim, table_claims, thesis_findings, thesis_quantity
+from sparselt.thesis.numbers import thesis_tables
 
 ALL_CLAIMS = [(number, claim) for number, claims in thesis_findings()["tables"].items() for claim in claims]
 

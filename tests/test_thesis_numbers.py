@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from sparselt.thesis_numbers import thesis_table, thesis_tables, thesis_value
+from sparselt.thesis.numbers import thesis_table, thesis_tables, thesis_value
 
 THESIS = Path(__file__).resolve().parents[2] / "shared" / "thesis" / "thesis.md"
 TABLE_NUMBERS = ["4.1", "5.1", "5.2", "6.1", "6.2", "6.3", "7.1", "7.2", "7.3", "8.1", "8.2"]

@@ -13,7 +13,7 @@ import pytest
 
 from sparselt.experiments.compare import ComparisonConfig, compare, validate_config
 from sparselt.fourier.hermitian import partner_indices
-from sparselt.methods import Budget, ComparisonContext, get_method
+from sparselt.methods import Budget, ComparisonContext, MethodSetup, get_method, run_timed
 from sparselt.methods.wedge_cosamp import check_tiling, default_tile, wedge_mask
 from sparselt.operators import PartialFourier
 from sparselt.recovery.cosamp import cosamp
@@ -204,26 +204,26 @@ def test_wedge_cosamp_is_unbiased_over_seeds(tmp_path):
 
 @pytest.fixture(scope="module")
 def scenes():
-    from sparselt.rendering import mitsuba_backend
+    from sparselt.rendering.mitsuba import MitsubaScene
     from sparselt.rendering.scenes import get_scene
 
-    thin_lens = mitsuba_backend.MitsubaScene(get_scene("cornell-box").with_lens(0.1, 1000.0), (16, 16))
-    pinhole = mitsuba_backend.MitsubaScene(get_scene("cornell-box"), (16, 16))
+    thin_lens = MitsubaScene(get_scene("cornell-box").with_lens(0.1, 1000.0), (16, 16))
+    pinhole = MitsubaScene(get_scene("cornell-box"), (16, 16))
     return thin_lens, pinhole
 
 
 def _context(scene, options=None, shape=(16, 16, 4, 4)):
     from sparselt.rendering.layout import path_layout
 
-    method = get_method("wedge-cosamp")
+    method = get_method("wedge-cosamp", grid_shape=shape, options=options)
     context = ComparisonContext(scene=scene, layout=path_layout("dof", 3, thin_lens=True), kind="dof",
-                                grid_shape=shape, resolution=shape[:2], max_depth=3, options=options or {})
-    return method, context.with_options(method.options_of(context))
+                                grid_shape=shape, resolution=shape[:2], max_depth=3)
+    return method, context
 
 
 def test_wedge_cosamp_runs_per_tile_and_records_its_details(scenes):
     method, context = _context(scenes[0], {"tile": 8})
-    result = method.run(context, Budget(spp=6, seed=4))
+    result = run_timed(method, context, Budget(spp=6, seed=4))
     details = result.details
     assert details["tiles"] == 4 and details["sparsity_per_tile"] == 8 * 8 * 4 * 4 // 200
     assert 0 < details["wedge_fraction"] <= 1 and details["cosamp_iterations"] > 0
@@ -243,7 +243,9 @@ def test_a_tile_that_does_not_divide_the_grid_is_refused(scenes):
     method, context = _context(scenes[0], {"tile": 5})
     with pytest.raises(ValueError, match=r"tile=5 must divide both image axes of the grid 16x16; choose one of 1, 2, "
                                          r"4, 8, 16"):
-        method.run(context, Budget(spp=4, seed=1))
+        run_timed(method, context, Budget(spp=4, seed=1))
+    with pytest.raises(ValueError, match=r"option wedge-cosamp.tile=5 must divide both image axes of the grid 16x16"):
+        method.check_preconditions(MethodSetup.of_context(context))  # declared: refused before anything renders
     with pytest.raises(ValueError, match="option wedge-cosamp.tile must be"):
         _context(scenes[0], {"tile": 32})
 
@@ -259,12 +261,14 @@ def test_kinds_other_than_dof_are_refused_before_anything_runs():
 def test_a_pinhole_camera_is_refused(scenes):
     method, context = _context(scenes[1])
     with pytest.raises(ValueError, match="needs a thin-lens camera; this one is a pinhole"):
-        method.run(context, Budget(spp=4, seed=1))
+        run_timed(method, context, Budget(spp=4, seed=1))
+    with pytest.raises(ValueError, match="method 'wedge-cosamp' needs a thin-lens camera with an aperture"):
+        method.check_preconditions(MethodSetup.of_context(context))
 
 
 def test_too_few_samples_are_refused(scenes):
     method, context = _context(scenes[0], {"sparsity": 600})
     with pytest.raises(ValueError, match="sparsity K=600 per tile must be below the measured cells"):
-        method.run(context, Budget(spp=4, seed=1))
+        run_timed(method, context, Budget(spp=4, seed=1))
     with pytest.raises(ValueError, match="needs spp >= 2"):
-        method.run(_context(scenes[0])[1], Budget(spp=1, seed=1))
+        run_timed(method, _context(scenes[0])[1], Budget(spp=1, seed=1))

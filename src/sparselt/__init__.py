@@ -28,6 +28,7 @@ from .recovery import RecoveryResult, cosamp, omp, sft, sft_lattice
 from .rendering.acquire import AcquisitionConfig, NonFiniteSampleError, acquire_signal
 from .rendering.layout import KINDS, path_layout
 from .rendering.scenes import get_scene, scene_names
+from .results import load_comparison, load_summary
 from .signal import IncompleteSignalError, Signal, load_signal
 
 __version__ = "0.1.0"
@@ -55,6 +56,8 @@ __all__ = [
     "Signal",
     "acquire_signal",
     "get_scene",
+    "load_comparison",
+    "load_summary",
     "load_signal",
     "path_layout",
     "scene_names",

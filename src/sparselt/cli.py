@@ -7,11 +7,11 @@ import os
 import sys
 
 # Constants live where they are defined; these modules import neither Mitsuba nor Dr.Jit.
-from .experiments.compare import KINDS as COMPARE_KINDS
+from .experiments.compare import ComparisonConfig
 from .experiments.sparsity_analysis import DEFAULT_GAMMAS
 from .rendering.acquire import DEFAULT_MAX_DEPTH, DEFAULT_SPP, NONFINITE_POLICIES
 from .rendering.layout import KINDS
-from .rendering.mitsuba_backend import DEFAULT_VARIANT, SUPPORTED_VARIANTS
+from .rendering.setup import DEFAULT_VARIANT, SUPPORTED_VARIANTS
 
 
 def _number_list(convert, example):
@@ -27,6 +27,18 @@ def _number_list(convert, example):
         return values
 
     return parse
+
+
+def _defaults(config_class):
+    """``{field: default}`` of a configuration dataclass: the one place a command's defaults live."""
+    import dataclasses
+
+    return {item.name: item.default for item in dataclasses.fields(config_class)
+            if item.default is not dataclasses.MISSING}
+
+
+def _listed(values):
+    return ",".join(map(str, values))
 
 
 _shape = _number_list(int, "64,64,8,8")
@@ -110,11 +122,11 @@ def _options_epilog():
     """The generated list of every registered method's options, for ``compare --help``."""
     import textwrap
 
-    from .methods import get_method, method_names
+    from .methods import method_class, method_names
 
     groups = {}
     for name in method_names():
-        declared = get_method(name).Options.declared()
+        declared = method_class(name).Options.declared()
         summary = " ".join(f"{item.name}={item.default_description()}" for item in declared) or "(no options)"
         groups.setdefault(summary, []).append(name)
     lines = ["method options: --option METHOD.NAME=VALUE (repeatable; '*.NAME=VALUE' sets NAME for every method of",
@@ -228,22 +240,30 @@ def build_parser():
         "(epsilon 0.01) and the luminance ratio against a cached path-traced reference. Writes results.csv, "
         "quality_vs_time.png, image_grid.png, table_8.md, images/ and compare.json; a rerun resumes.",
     )
+    defaults = _defaults(ComparisonConfig)
     compare.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
-    compare.add_argument("--kind", required=True, choices=COMPARE_KINDS, help="signal kind")
-    compare.add_argument("--shape", type=_shape, required=True, help="signal grid of the kind, e.g. 250,250,16,16")
-    compare.add_argument("--methods", type=_names, default=("pt", "cosamp"),
-                         help="comma-separated registered methods (default: pt,cosamp; 'sparselt methods' lists them)")
-    compare.add_argument("--spp", type=_shape, default=(40, 81, 163), help="budgets in samples per pixel (default: 40,81,163)")
-    compare.add_argument("--seeds", type=_shape, default=(1, 2, 3),
-                         help="seeds, comma separated; intervals and verdicts come from their spread (default: 1,2,3)")
-    compare.add_argument("--timing-repeats", type=int, default=3,
+    compare.add_argument("--kind", required=True, choices=KINDS, help="signal kind")
+    compare.add_argument("--shape", type=_shape, default=None,
+                         help="signal grid of the kind, e.g. 250,250,16,16 (default: the scene film's width,height, "
+                              "then 16 cells per lens or secondary-ray axis for dof and indirect, 4 per path-vertex "
+                              "axis for path and path-indirect; recorded in compare.json)")
+    compare.add_argument("--methods", type=_names, default=defaults["methods"],
+                         help=f"comma-separated registered methods, each optionally a variant METHOD:NAME=VALUE[:...] "
+                              f"(default: {_listed(defaults['methods'])}; 'sparselt methods' lists them)")
+    compare.add_argument("--spp", type=_shape, default=defaults["spps"],
+                         help=f"budgets in samples per pixel (default: {_listed(defaults['spps'])})")
+    compare.add_argument("--seeds", type=_shape, default=defaults["seeds"],
+                         help=f"seeds, comma separated; intervals and verdicts come from their spread "
+                              f"(default: {_listed(defaults['seeds'])})")
+    compare.add_argument("--timing-repeats", type=int, default=defaults["timing_repeats"],
                          help="runs of every cell; its time is the median (default: %(default)s)")
-    compare.add_argument("--pt-ladder-max-spp", type=int, default=4096,
+    compare.add_argument("--pt-ladder-max-spp", type=int, default=defaults["pt_ladder_max_spp"],
                          help="PT runs automatically at a doubling spp ladder until it passes every method's time, "
                               "up to this spp (default: %(default)s)")
     compare.add_argument("--resolution", type=_shape, default=None, help="output width,height (default: the shape's image axes)")
-    compare.add_argument("--reference-spp", type=int, default=4096, help="reference samples per pixel (default: %(default)s)")
-    compare.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
+    compare.add_argument("--reference-spp", type=int, default=defaults["reference_spp"],
+                         help="reference samples per pixel (default: %(default)s)")
+    compare.add_argument("--max-depth", type=int, default=defaults["max_depth"], help="longest path (default: %(default)s)")
     compare.add_argument("--option", dest="options", action=_MethodOption, default={}, metavar="METHOD.NAME=VALUE",
                          help="a method's option (repeatable; see the list below)")
     for flag in REMOVED_FLAGS:
@@ -265,24 +285,32 @@ def build_parser():
         description="Sparse Fourier Transform of a rendered path-space signal through the renderer as its oracle "
                     "(thesis 6.1): samples per alpha beside the thesis's Table 6.1, image quality against a reference "
                     "and against path tracing at equal samples and equal time, and how compressible the signal is.")
+    from .experiments.sft_path_space import Table61Config
+
+    defaults = _defaults(Table61Config)
     table.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
-    table.add_argument("--kind", default="path", choices=("path", "path-indirect", "dof", "indirect"),
-                       help="signal kind (default: path)")
-    table.add_argument("--shape", type=_shape, default=(100, 100) + (4,) * 8,
-                       help="grid (default: the thesis's 100,100,4,4,4,4,4,4,4,4)")
-    table.add_argument("--alpha", type=_numbers, default=(4.0, 16.0, 32.0), help="buckets per coefficient (default 4,16,32)")
-    table.add_argument("--spp", type=int, default=1, help="path samples per lattice point (default: %(default)s)")
-    table.add_argument("--noise-spp", type=_shape, default=(4,),
-                       help="also run the first alpha at these samples per point (default: 4)")
-    table.add_argument("--sparsity", type=int, default=None, help="K (default N/10^4, as the thesis)")
-    table.add_argument("--snr", type=float, default=10.0, help="SNR in dB the SFT assumes (default: %(default)s)")
-    table.add_argument("--seed", type=int, default=1, help="seed (default: %(default)s)")
-    table.add_argument("--reference-spp", type=int, default=1024, help="reference samples per pixel (default: %(default)s)")
-    table.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
+    table.add_argument("--kind", default=defaults["kind"], choices=KINDS, help="signal kind (default: %(default)s)")
+    table.add_argument("--shape", type=_shape, default=defaults["shape"],
+                       help=f"grid (default: the thesis's {_listed(defaults['shape'])})")
+    table.add_argument("--alpha", type=_numbers, default=defaults["alphas"],
+                       help=f"buckets per coefficient (default {_listed(f'{alpha:g}' for alpha in defaults['alphas'])})")
+    table.add_argument("--spp", type=int, default=defaults["spp"],
+                       help="path samples per lattice point (default: %(default)s)")
+    table.add_argument("--noise-spp", type=_shape, default=defaults["noise_spps"],
+                       help=f"also run the first alpha at these samples per point "
+                            f"(default: {_listed(defaults['noise_spps'])})")
+    table.add_argument("--sparsity", type=int, default=defaults["sparsity"], help="K (default N/10^4, as the thesis)")
+    table.add_argument("--snr", type=float, default=defaults["snr"],
+                       help="SNR in dB the SFT assumes (default: %(default)s)")
+    table.add_argument("--seed", type=int, default=defaults["seed"], help="seed (default: %(default)s)")
+    table.add_argument("--reference-spp", type=int, default=defaults["reference_spp"],
+                       help="reference samples per pixel (default: %(default)s)")
+    table.add_argument("--max-depth", type=int, default=defaults["max_depth"], help="longest path (default: %(default)s)")
     table.add_argument("--compressibility-shape", type=_shape, default=None,
                        help="grid fully sampled to measure compressibility (default: image /4, other axes /2)")
     table.add_argument("--out", required=True, help="output folder (rerun to resume)")
     table.add_argument("--no-progress", action="store_true", help="hide progress output")
+    _add_camera_options(table)
     _add_scene_options(table)
     table.set_defaults(handler=_table61)
 
@@ -298,6 +326,9 @@ def build_parser():
     reproduce.add_argument("--overwrite", action="store_true",
                            help="replace a folder holding the other scale (only the files sparselt wrote there)")
     reproduce.add_argument("--no-progress", action="store_true", help="hide progress output")
+    reproduce.add_argument("--methods", type=_names, default=(),
+                           help="more rows of chapter 8's equal-time comparison: method names or variants "
+                                "METHOD:NAME=VALUE[:...], comma separated, each a row named as written")
     _add_plugin_option(reproduce)
     reproduce.set_defaults(handler=_reproduce)
 
@@ -363,7 +394,7 @@ def _sample(arguments):
 
 
 def _render(arguments):
-    from .rendering.baseline import render_reference
+    from .experiments.render import render_reference
 
     resolution = arguments.resolution
     if resolution is not None and len(resolution) != 2:
@@ -401,7 +432,8 @@ def _compare(arguments):
     from .experiments.compare import ComparisonConfig, compare
 
     config = ComparisonConfig(
-        scene=arguments.scene, kind=arguments.kind, shape=tuple(arguments.shape), methods=tuple(arguments.methods),
+        scene=arguments.scene, kind=arguments.kind, shape=tuple(arguments.shape) if arguments.shape else None,
+        methods=tuple(arguments.methods),
         spps=tuple(arguments.spp), seeds=tuple(arguments.seeds),
         resolution=tuple(arguments.resolution) if arguments.resolution else None,
         reference_spp=arguments.reference_spp, max_depth=arguments.max_depth, aperture=arguments.aperture,
@@ -422,7 +454,9 @@ def _table61(arguments):
                            sparsity=arguments.sparsity, snr=arguments.snr, seed=arguments.seed,
                            reference_spp=arguments.reference_spp, max_depth=arguments.max_depth,
                            compressibility_shape=tuple(arguments.compressibility_shape)
-                           if arguments.compressibility_shape else None, scene_parameters=arguments.parameters)
+                           if arguments.compressibility_shape else None, scene_parameters=arguments.parameters,
+                           aperture=arguments.aperture, focus_distance=arguments.focus_distance,
+                           variant=arguments.variant)
     run_table61(config, arguments.out, progress=not arguments.no_progress)
     with open(os.path.join(arguments.out, "table_6_1.md"), encoding="utf-8") as handle:
         print(handle.read())
@@ -434,22 +468,23 @@ def _reproduce(arguments):
     from .experiments.reproduce import reproduce
 
     path = reproduce(arguments.chapter, arguments.scale, arguments.out, progress=not arguments.no_progress,
-                     overwrite=arguments.overwrite, plugins=tuple(arguments.plugin))
+                     overwrite=arguments.overwrite, plugins=tuple(arguments.plugin),
+                     methods=tuple(arguments.methods))
     print(f"open {os.path.abspath(path)}")
     return 0
 
 
 def _list_methods(arguments):
-    from .methods import get_method, method_names
+    from .methods import method_class, method_names
 
     if not arguments.names:
         for name in method_names():
-            method = get_method(name)
+            method = method_class(name)
             print(f"{name:16s} {','.join(method.kinds):22s} {method.description}")
         print("\n'sparselt methods METHOD' describes a method and its options")
         return 0
     for index, name in enumerate(arguments.names):
-        print(("\n" if index else "") + describe_method(get_method(name)))
+        print(("\n" if index else "") + describe_method(method_class(name)))
     return 0
 
 

@@ -1,4 +1,4 @@
-"""Writing images: tone-mapped PNGs for people, float EXRs for programs.
+"""How images are shown: luminance, exposure and tone mapping (files are written by :mod:`sparselt.image_io`).
 
 Display conventions, in one place: luminance (Rec. 709); the exposure of a
 picture (:func:`reference_exposure`: the reference's 99th luminance
@@ -8,11 +8,7 @@ clipped to ``[0, 1]``, then the sRGB transfer curve).
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
-
-
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)
 
@@ -72,24 +68,3 @@ def reference_exposure(reference):
     brightness = np.asarray(reference, dtype=np.float64).mean(axis=-1)  # channel mean, as the thesis's figures
     level = np.percentile(brightness, 99) if brightness.size else 0.0
     return 0.9 / level if level > 0 else 1.0
-
-
-def png_bytes(image, *, exposure=1.0):
-    """A linear ``(height, width, 3)`` image, tone-mapped (:func:`srgb_tonemap`), as PNG bytes."""
-    from matplotlib import image as matplotlib_image
-
-    buffer = io.BytesIO()
-    matplotlib_image.imsave(buffer, srgb_tonemap(image, exposure), format="png")
-    return buffer.getvalue()
-
-
-def figure_bytes(figure, **options):
-    """A matplotlib figure as PNG bytes, cropped to what it draws (legends outside the axes included); closed."""
-    import matplotlib.pyplot as pyplot
-
-    options.setdefault("bbox_inches", "tight")
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", **options)
-    pyplot.close(figure)
-    return buffer.getvalue()
-

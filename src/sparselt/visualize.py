@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .checks import check_integer
+from .experiments.protocol import Experiment, run_experiment
 from .images import reference_exposure, srgb_tonemap
 
 
@@ -35,15 +36,25 @@ def show_signal(signal, out, *, grid=4, client=None, overwrite=False):
     list of str
         The files written.
     """
-    from .storage.folder import ExperimentFolder, signal_identity
-
     check_integer("grid", grid, 1)
-    folder = ExperimentFolder(out, kind="show", identity=dict(signal_identity(signal), grid=grid), overwrite=overwrite)
-    folder.inspect()
-    with folder.open():
-        written = _write_pictures(signal, folder, grid, client)
-        folder.complete()
-    return written
+    return run_experiment(ShowExperiment(signal, grid=grid, client=client), out, overwrite=overwrite, progress=False)
+
+
+class ShowExperiment(Experiment):
+    """``sparselt show`` as an experiment: no cells; the report is the pictures of the signal."""
+
+    kind = "show"
+
+    def __init__(self, signal, *, grid=4, client=None):
+        self.signal, self.grid, self.client = signal, grid, client
+
+    def identity(self):
+        from .storage.folder import signal_identity
+
+        return dict(signal_identity(self.signal), grid=self.grid)
+
+    def report(self, folder, state, records):
+        return _write_pictures(self.signal, folder, self.grid, self.client)
 
 
 def _write_pictures(signal, folder, grid, client):

@@ -55,20 +55,20 @@ from ..analysis.metrics import (
 )
 from ..checks import check_integer
 from ..images import luminance
-from ..methods import TIME_PHASES, Budget, ComparisonContext, baseline_name, get_method, resolve_options
+from ..methods import TIME_PHASES, Budget, ComparisonContext, MethodSetup, baseline_name, get_method, run_timed
+from ..methods.variants import parse_method_variant, variant_file_name
 from ..methods.contract import check_result
 from ..provenance import environment_record
-from ..rendering import mitsuba_backend
+from ..rendering.mitsuba import MitsubaScene
 from ..rendering.baseline import METHOD_SEED_LIMIT, REFERENCE_SEED_LIMIT, check_wavefront, reference_relmse_floor
-from ..rendering.identity import scene_identity
-from ..rendering.layout import path_layout
-from ..rendering.scenes import SceneSpec, get_scene
+from ..rendering.layout import KINDS
+from ..rendering.scenes import SceneSpec
+from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
 from ..report.comparison import results_table, write_comparison_outputs
-from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS
-from ..storage.folder import ExperimentFolder
+from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS, in_comparison_order
+from .protocol import Experiment, run_experiment
 from .equal_time import NOISY_TIMING_RATIO, add_equal_time_columns, summarize
 
-KINDS = ("dof", "indirect", "path", "path-indirect")
 RELMSE_EPSILON = 0.01
 CONFIG_FILE = "compare.json"
 IMAGES = "images"
@@ -130,41 +130,57 @@ class ComparisonConfig:
 
     scene: str
     kind: str
-    shape: tuple
+    shape: tuple | None = None
     methods: tuple = ("pt", "cosamp")
     spps: tuple = (40, 81, 163)
     seeds: tuple = (1, 2, 3)
     resolution: tuple | None = None
     reference_spp: int = 4096
     reference_seed: int = 0
-    max_depth: int = 3
+    max_depth: int = DEFAULT_MAX_DEPTH
     aperture: float | None = None
     focus_distance: float | None = None
     options: dict = field(default_factory=dict)
     timing_repeats: int = 3
     pt_ladder_max_spp: int = 4096
     caustic_mask: bool = False
-    variant: str = "llvm_ad_rgb"
+    variant: str = DEFAULT_VARIANT
     scene_parameters: tuple = ()
+
+    def __post_init__(self):
+        if self.shape is None:  # the film's resolution and the kind's default on the other axes, recorded as such
+            object.__setattr__(self, "shape", self.setup.grid_shape)
+
+    @property
+    def setup(self):
+        """The comparison's :class:`~sparselt.rendering.setup.SceneSetup`: scene, parameters, lens, kind, grid."""
+        return SceneSetup(scene=self.scene, kind=self.kind, shape=self.shape, max_depth=self.max_depth,
+                          parameters=self.scene_parameters, aperture=self.aperture,
+                          focus_distance=self.focus_distance, variant=self.variant)
 
     @property
     def output_resolution(self):
         return tuple(self.resolution) if self.resolution is not None else tuple(self.shape[:2])
 
     def resolved_options(self):
-        """``{method: MethodOptions}`` of every method of the run: the one validation of their options.
+        """``{row: MethodOptions}`` of every method of the run (a row is a method name or a variant as written).
 
         Raises
         ------
         ValueError
             Options for a method name that is not registered, a ``'*'``
-            option no registered method declares, or an option a method does
-            not declare or whose value it refuses (the message names
-            ``method.option`` and what is allowed).
+            option no registered method declares, a malformed variant, or an
+            option a method does not declare or whose value it refuses (the
+            message names ``method.option`` and what is allowed).
         TypeError
             ``options`` is not a mapping of mappings, or a value has the wrong type.
         """
-        return resolve_run_options(self.methods, self.options, self.shape)
+        return {row: method.options for row, method in self.comparison_methods().items()}
+
+    def comparison_methods(self, rows=None):
+        """``{row: Method}``: the estimator of every row of ``rows`` (default :attr:`methods`), its options
+        resolved (:func:`comparison_methods`)."""
+        return comparison_methods(self.methods if rows is None else rows, self.options, self.shape)
 
     def record(self):
         record = asdict(self)
@@ -175,52 +191,76 @@ class ComparisonConfig:
         record["options"] = {method: dict(values) for method, values in sorted(self.options.items())}
         return record
 
-    def identity(self):
+    def identity(self, methods=None):
         """What makes two comparisons the same: the record without the lists a rerun may extend, and
-        every method's options resolved (``method_options``).
+        every row's options resolved (``method_options``, by row: a method name or a variant as written).
 
         Stating a default (``--option cosamp.gamma=0.25``) is the same
         comparison as leaving it out. ``method_options`` may grow (a rerun
         may add methods); a method already in the folder must come back with
         the same options (:class:`~sparselt.storage.folder.ExperimentFolder`'s
-        ``growable`` identity keys).
+        ``growable`` identity keys). ``methods`` (``{row: Method}``, from
+        :meth:`comparison_methods`) saves resolving the options again.
         """
+        methods = self.comparison_methods() if methods is None else methods
         record = {key: value for key, value in self.record().items() if key not in EXTENSIBLE + ("options",)}
-        record["method_options"] = {name: options.record() for name, options in self.resolved_options().items()}
+        record["method_options"] = {row: methods[row].options.record() for row in self.methods}
         return record
 
 
-def resolve_run_options(methods, options, grid_shape):
-    """``{method: MethodOptions}`` for ``methods`` from ``{method or '*': {name: value}}`` (see
-    :meth:`ComparisonConfig.resolved_options`).
+def comparison_methods(rows, options, grid_shape):
+    """``{row: Method}`` for the rows of a comparison: the one resolution of their options.
+
+    Parameters
+    ----------
+    rows : sequence of str
+        Method names or variants ``METHOD:NAME=VALUE[:NAME=VALUE...]``
+        (:func:`~sparselt.methods.variants.parse_method_variant`).
+    options : dict
+        ``{method or '*': {name: value}}``. A row's options, lowest
+        precedence first: the defaults, ``'*'`` (for every row whose method
+        declares the option), its method's entry (every row of that method),
+        the variant's own values.
+    grid_shape : tuple of int
+        The signal grid (derived defaults and bounds).
 
     Options for a registered method that is not in this run, and ``'*'``
     options that no method of this run declares, are not used (a rerun with
     fewer methods keeps the same options); a method name that is not
     registered, or a ``'*'`` option no registered method declares, is a
     typo and refused.
+
+    Raises
+    ------
+    ValueError, TypeError
+        As :meth:`ComparisonConfig.resolved_options`.
     """
-    from ..methods import method_names
+    from ..methods import method_class, method_names
 
     if not isinstance(options, dict) or not all(isinstance(values, dict) for values in options.values()):
         raise TypeError(f"options must map a method name (or '*') to {{option: value}}, got {options!r}")
     for name in options:
         if name != "*":
-            get_method(name)  # an unknown name is refused, listing the registered ones
+            method_class(name)  # an unknown name is refused, listing the registered ones
     everywhere = {key.replace("-", "_"): value for key, value in options.get("*", {}).items()}
-    declared_anywhere = {item.name for name in method_names() for item in get_method(name).Options.declared()}
+    declared_anywhere = {item.name for name in method_names() for item in method_class(name).Options.declared()}
     unknown = sorted(set(everywhere) - declared_anywhere)
     if unknown:
         raise ValueError(f"option '*.{unknown[0]}' is declared by no registered method ('sparselt methods NAME' lists "
                          "a method's options)")
-    resolved = {}
-    for name in methods:
-        method = get_method(name)
-        declared = {item.name for item in method.Options.declared()}
+    methods = {}
+    for row in rows:
+        name, _ = parse_method_variant(row)
+        declared = {item.name for item in method_class(name).Options.declared()}
         given = {key: value for key, value in everywhere.items() if key in declared}
         given.update(options.get(name, {}))
-        resolved[name] = resolve_options(method.Options, given, grid_shape=tuple(grid_shape), owner=name)
-    return resolved
+        methods[row] = get_method(row, grid_shape=tuple(grid_shape), options=given)
+    return methods
+
+
+def resolve_run_options(methods, options, grid_shape):
+    """``{row: MethodOptions}`` for the rows ``methods`` (see :func:`comparison_methods`)."""
+    return {row: method.options for row, method in comparison_methods(methods, options, grid_shape).items()}
 
 
 @dataclass
@@ -233,24 +273,40 @@ class ComparisonResult:
     overhead_fraction: float = 0.0
     methods: dict = field(default_factory=dict)
     summary: list = field(default_factory=list)
+    seconds: dict = field(default_factory=dict)
 
     def table(self):
         return results_table(self.rows)
 
 
-def validate_config(config):
-    """Check everything that needs no renderer; raise ValueError naming the bad value."""
+def validate_config(config, *, with_methods=False):
+    """Check everything that needs no renderer; raise ValueError naming the bad value.
+
+    Every row's options are resolved here, once (:func:`comparison_methods`),
+    and every method's declared preconditions checked
+    (:meth:`~sparselt.methods.base.Method.check_preconditions`; those on the
+    camera of a scene file wait for it to load, :func:`check_preconditions`).
+
+    Returns
+    -------
+    setup : SceneSetup
+    methods : dict
+        With ``with_methods``: ``{row: Method}`` of every row and of the
+        baseline (PT's ladder), in that order.
+    """
+    from ..methods import method_class
+
     if config.kind not in KINDS:
         raise ValueError(f"compare supports kinds {', '.join(KINDS)}; got {config.kind!r}")
     if not config.methods:
         raise ValueError("give at least one method")
     if len(set(config.methods)) != len(config.methods):
         raise ValueError(f"methods {list(config.methods)} repeat a name")
-    methods = [get_method(name) for name in config.methods]
-    for method in methods:
-        if config.kind not in method.kinds:
-            raise ValueError(f"method {method.name!r} does not support kind {config.kind!r}; it supports "
-                             f"{', '.join(method.kinds)}")
+    for row in config.methods:
+        cls = method_class(parse_method_variant(row)[0])  # an unknown method or a malformed variant: refused here
+        if config.kind not in cls.kinds:
+            raise ValueError(f"method {row!r} does not support kind {config.kind!r}; it supports "
+                             f"{', '.join(cls.kinds)}")
     if not config.spps:
         raise ValueError("give at least one spp")
     for spp in config.spps:
@@ -262,31 +318,50 @@ def validate_config(config):
     check_integer("timing repeats", config.timing_repeats, 1, 100)
     check_integer("PT ladder max spp", config.pt_ladder_max_spp, 2, 2**16 - 1)
     check_integer("reference seed", config.reference_seed, 0, REFERENCE_SEED_LIMIT - 1)
-    check_integer("max_depth", config.max_depth, 1)
-    if len(config.shape) < 2:
-        raise ValueError(f"shape {tuple(config.shape)} needs at least the two image axes")
-    for size in config.shape:
-        check_integer("every shape entry", size, 1)
-    if math.prod(config.shape) >= 2**32:
-        raise ValueError(f"shape {tuple(config.shape)} has more than 2**32 - 1 cells")
+    setup = config.setup.validate()  # kind, depth, shape, scene, parameters, lens: before anything else
     resolution = config.output_resolution
     if len(resolution) != 2:
         raise ValueError(f"resolution takes width,height; got {resolution}")
     for size in resolution:
         check_integer("resolution", size, 1)
-    for method in methods:
-        if method.needs_resolution_multiple and any(r % s for r, s in zip(resolution, config.shape[:2])):
-            raise ValueError(f"method {method.name!r} needs --resolution to be a multiple of the shape's image axes "
-                             f"{tuple(config.shape[:2])}; got {resolution}")
-    config.resolved_options()  # every method's options, checked before anything runs
+    baseline = baseline_name()
+    methods = config.comparison_methods(tuple(config.methods) + ((baseline,) if baseline not in config.methods
+                                                                  else ()))  # every option, checked once
+    _check_distinct(methods)
+    spec = setup.spec  # a built-in scene's camera is known before it loads; a scene file's after (compare())
+    camera = spec.resolved_camera() if spec.camera is not None else None
+    check_preconditions(methods, MethodSetup(kind=config.kind, grid_shape=tuple(config.shape),
+                                             resolution=resolution, spps=tuple(config.spps),
+                                             thin_lens=None if camera is None else bool(camera.thin_lens)))
     check_wavefront(resolution, max(max(config.spps), config.pt_ladder_max_spp))
     check_reference_spp(resolution, config.reference_spp)
     if min(resolution) < 11:
         raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
-    spec = get_scene(config.scene).with_parameters(config.scene_parameters).with_lens(config.aperture, config.focus_distance)
-    if spec.camera is not None:
-        _check_layout(config, spec.resolved_camera().thin_lens, spec.hide_emitters)
-    return spec
+    return (setup, methods) if with_methods else setup
+
+
+def check_preconditions(methods, setup):
+    """Every method's declared preconditions against ``setup`` (a :class:`~sparselt.methods.MethodSetup`).
+
+    Raises
+    ------
+    ValueError
+        The first one not met, naming the method's row and the fix.
+    """
+    for method in methods.values():
+        method.check_preconditions(setup)
+
+
+def _check_distinct(methods):
+    """Refuse two rows that are one estimator (one method, the same resolved options: ``cosamp`` and
+    ``cosamp:gamma=0.25``)."""
+    seen = {}
+    for row, method in methods.items():
+        key = (method.name, tuple(sorted(method.options.record().items())))
+        if key in seen:
+            raise ValueError(f"methods {seen[key]!r} and {row!r} are the same estimator (method {method.name!r} with "
+                             f"the same options {method.options.record()}); give each once")
+        seen[key] = row
 
 
 def check_reference_spp(resolution, spp):
@@ -301,16 +376,10 @@ def check_reference_spp(resolution, spp):
                          f"{MAXIMUM_REFERENCE_SAMPLES // (resolution[0] * resolution[1])} at this resolution)")
 
 
-def _check_layout(config, thin_lens, hide_emitters=False):
-    layout = path_layout(config.kind, config.max_depth, thin_lens=thin_lens, hide_emitters=hide_emitters)
-    if len(config.shape) != len(layout.axes):
-        raise ValueError(f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max "
-                         f"depth {config.max_depth} has {len(layout.axes)}: {', '.join(layout.axes)}")
-    return layout
-
-
 def cell_name(method, spp, seed):
-    return f"{method}_spp{spp}_seed{seed}"
+    """The file name of a cell: its row (a method name, or a variant written file-safe by
+    :func:`~sparselt.methods.variants.variant_file_name`), spp and seed."""
+    return f"{variant_file_name(method)}_spp{spp}_seed{seed}"
 
 
 SPECULAR_BSDFS = ("conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric", "plastic",
@@ -343,7 +412,7 @@ def caustic_mask(loaded, reference, *, spp, max_depth, seed=0, fraction=0.3):
     plain = SceneSpec(name=spec.name + "-diffuse", description="specular BSDFs made diffuse",
                       objects=_without_specular(spec.objects), camera=spec.camera, lens_overrides=spec.lens_overrides,
                       hide_emitters=spec.hide_emitters)
-    other = mitsuba_backend.MitsubaScene(plain, (loaded.width, loaded.height))
+    other = MitsubaScene(plain, (loaded.width, loaded.height))
     without, _ = other.render_path(spp, max_depth, seed)
     albedo, _ = loaded.render_aovs(16, seed)
     albedo_plain, _ = other.render_aovs(16, seed)
@@ -407,45 +476,85 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     StoreLockedError
         Another run is writing the folder (the message names it).
     """
-    from ..rendering.baseline import cached_reference
+    return run_experiment(ComparisonExperiment(config, cache_directory=cache_directory), out, overwrite=overwrite,
+                          progress=progress)
 
-    started = time.perf_counter()
-    spec = validate_config(config)
-    folder = comparison_folder(config, spec, out, overwrite=overwrite)
-    folder.inspect()  # refusals before the scene loads; nothing is removed yet
 
-    load_start = time.perf_counter()
-    loaded = mitsuba_backend.MitsubaScene(spec, config.output_resolution, variant=config.variant)
-    load_seconds = time.perf_counter() - load_start
-    layout = _check_layout(config, loaded.camera.thin_lens, spec.hide_emitters)
-    context = ComparisonContext(scene=loaded, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
-                                resolution=config.output_resolution, max_depth=config.max_depth)
-    baseline = baseline_name()
-    names = tuple(config.methods) + ((baseline,) if baseline not in config.methods else ())  # PT's ladder
-    methods = [get_method(name) for name in names]  # their kinds were checked by validate_config
-    options = resolve_run_options(names, config.options, config.shape)
+@dataclass(frozen=True)
+class _LoadedComparison:
+    """What :meth:`ComparisonExperiment.prepare` loads once: the method context and the scene's load time."""
 
-    with folder.open():
+    context: ComparisonContext
+    load_seconds: float
+
+
+class ComparisonExperiment(Experiment):
+    """``sparselt compare`` as an experiment of the protocol (:mod:`sparselt.experiments.protocol`).
+
+    Its cells are the (row, spp, seed) cells of :class:`_CellRunner`, timed
+    ``timing_repeats`` times in rounds over every cell (so it overrides
+    :meth:`run_cells`), after the reference; its report is every output of
+    :func:`~sparselt.report.comparison.write_comparison_outputs` and ``compare.json``.
+    """
+
+    kind = "compare"
+    growable = ("method_options",)
+
+    def __init__(self, config, *, cache_directory=None):
+        self.config = config
+        self.cache_directory = cache_directory
+        self.started = time.perf_counter()
+        self.setup = self.methods = self._identity = None
+        self.seconds = {}
+
+    def validate(self):
+        self.setup, self.methods = validate_config(self.config, with_methods=True)  # {row: Method}, PT's included
+        self._identity = self.config.identity(self.methods)
+
+    def identity(self):
+        return self._identity
+
+    def scene_identity(self):
+        return self.setup.scene_identity
+
+    def prepare(self):
+        """Load the scene once and check every method's preconditions again, now that a scene file's camera is
+        known: before the reference renders."""
+        config = self.config
+        load_start = time.perf_counter()
+        scene = self.setup.load(config.output_resolution)
+        load_seconds = time.perf_counter() - load_start
+        context = ComparisonContext(scene=scene.scene, layout=scene.layout, kind=config.kind,
+                                    grid_shape=tuple(config.shape), resolution=config.output_resolution,
+                                    max_depth=config.max_depth)
+        check_preconditions(self.methods, MethodSetup.of_context(context, spps=tuple(config.spps)))
+        return _LoadedComparison(context=context, load_seconds=load_seconds)
+
+    def run_cells(self, folder, state, *, progress):
+        """The reference (cached), then every cell in rounds and PT's ladder; returns ``compare.json``'s record."""
+        from ..rendering.baseline import cached_reference
+
+        config, methods, loaded = self.config, self.methods, state.context.scene
         record = folder.read_json(CONFIG_FILE) if folder.exists(CONFIG_FILE) else {}
-        resolved = dict(config.record(), identity=config.identity())
+        resolved = dict(config.record(), identity=self._identity)
         for name in EXTENSIBLE:  # a rerun may add methods, budgets or seeds: record the union
             earlier = record.get("config", {}).get(name, [])
             resolved[name] = list(dict.fromkeys(list(earlier) + resolved[name]))
         record["config"] = resolved
         record["provenance"] = environment_record()  # this command's; the manifest keeps every command's
         record["methods"] = dict(record.get("methods", {}), **{
-            method.name: method_record(method, options[method.name]) for method in methods})
+            row: method_record(method) for row, method in methods.items()})
         record.setdefault("warm_up_seconds", {})
         record["relmse_epsilon"] = RELMSE_EPSILON
-        record["hide_emitters"] = spec.hide_emitters
+        record["hide_emitters"] = self.setup.spec.hide_emitters
         record["status"] = "running"
         folder.write_json(CONFIG_FILE, record)
 
         reference_start = time.perf_counter()
         reference, reference_record = cached_reference(loaded, config.kind, spp=config.reference_spp,
                                                        max_depth=config.max_depth, seed=config.reference_seed,
-                                                       progress=progress, cache_directory=cache_directory)
-        reference_seconds = time.perf_counter() - reference_start
+                                                       progress=progress, cache_directory=self.cache_directory)
+        self.seconds["reference"] = time.perf_counter() - reference_start
         exposure = reference_exposure(reference)
         folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
         mask = None
@@ -458,13 +567,20 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         floor = reference_relmse_floor(reference, reference_record["variance"], epsilon=RELMSE_EPSILON)
         record["reference_relmse_floor"] = floor if math.isfinite(floor) else None
 
-        runner = _CellRunner(folder, context, options, config, reference, mask, exposure, record, progress,
-                             floor=record["reference_relmse_floor"])
-        ladder = runner.run_all(methods, get_method(baseline))
-        if ladder is not None:
-            record["pt_ladder"] = ladder
-        method_seconds = runner.seconds
+        runner = _CellRunner(folder, state.context, config, reference, mask, exposure, progress,
+                             floor=record["reference_relmse_floor"], rows_so_far=tuple(record["config"]["methods"]))
+        outcome = runner.run_all(list(methods.values()), methods[baseline_name()])
+        record["warm_up_seconds"].update(outcome.warm_up_seconds)
+        if outcome.ladder is not None:
+            record["pt_ladder"] = outcome.ladder
+        self.seconds["methods"] = outcome.method_seconds
+        self.seconds["metrics"] = outcome.metric_seconds
+        self.reference = reference
+        return record
 
+    def report(self, folder, state, record):
+        """Equal-time columns and summary, every table and figure, and ``compare.json`` completed."""
+        config, baseline = self.config, baseline_name()
         rows = _load_rows(folder, [baseline] + record["config"]["methods"])
         fit = add_equal_time_columns(rows, baseline=baseline)
         summary = summarize(rows, fit, baseline=baseline)
@@ -473,35 +589,119 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
             "relmse_per_seed": {str(seed): {"c": c, "floor": floor} for seed, (c, floor) in fit.relmse.items()},
             "spp_range": list(fit.spp_range)}
         report_start = time.perf_counter()
-        write_comparison_outputs(folder, rows, reference, config, spec.name, methods=record["methods"],
+        write_comparison_outputs(folder, rows, self.reference, config, self.setup.spec.name, methods=record["methods"],
                                  summary=summary, fit=record["pt_fit"], epsilon=RELMSE_EPSILON,
                                  image_of=lambda row: np.load(folder.path_of(
                                      f"{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy")),
                                  provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
         report_seconds = time.perf_counter() - report_start
-        total = time.perf_counter() - started
-        harness = max(0.0, total - method_seconds - reference_seconds)
+        total = time.perf_counter() - self.started
+        harness = max(0.0, total - self.seconds["methods"] - self.seconds["reference"])
         record["status"] = "complete"
-        record["seconds"] = {"total": total, "methods": method_seconds, "reference": reference_seconds,
-                             "harness": harness, "of_which_scene_load": load_seconds,
-                             "of_which_reports": report_seconds, "of_which_metrics": runner.metric_seconds}
+        record["seconds"] = {"total": total, "methods": self.seconds["methods"], "reference": self.seconds["reference"],
+                             "harness": harness, "of_which_scene_load": state.load_seconds,
+                             "of_which_reports": report_seconds, "of_which_metrics": self.seconds["metrics"]}
         record["harness_overhead_fraction"] = harness / total if total > 0 else 0.0
         folder.write_json(CONFIG_FILE, record)
-        folder.complete(seconds=record["seconds"])
-    return ComparisonResult(rows=rows, out=folder.path, reference=record["reference"],
-                            overhead_fraction=record["harness_overhead_fraction"], methods=record["methods"],
-                            summary=summary)
+        return ComparisonResult(rows=rows, out=folder.path, reference=record["reference"],
+                                overhead_fraction=record["harness_overhead_fraction"], methods=record["methods"],
+                                summary=summary, seconds=record["seconds"])
+
+    def summary(self, result):
+        return {"seconds": result.seconds}
+
+
+def ladder_search(run_rung, others, *, smallest_budget, maximum_spp, start=None):
+    """PT's automatic ladder: the rungs (spp) whose times cover every other method's time.
+
+    PT runs at spp = s0, 2 s0, 4 s0, ... (s0 half the smallest budget, at
+    least 1) until its time passes every other method's time (and at least
+    two rungs ran) or the next rung would pass ``maximum_spp``; then at
+    s0 / 2, s0 / 4, ... down to 1 spp while its smallest rung is slower than
+    the fastest method: nothing is extrapolated at either end
+    (:class:`~sparselt.experiments.equal_time.BaselineFit` fits over the
+    rungs).
+
+    Parameters
+    ----------
+    run_rung : callable
+        ``run_rung(spp) -> sequence of float``: runs (or reads) PT at
+        ``spp`` for every seed and returns its times; its median is the rung's time.
+    others : sequence of float
+        Every other method's cell times.
+    smallest_budget : int
+        The comparison's smallest spp.
+    maximum_spp : int
+        The cap (:attr:`ComparisonConfig.pt_ladder_max_spp`).
+    start : sequence of int, optional
+        A ladder already run: the search resumes from its last rung.
+
+    Returns
+    -------
+    dict
+        ``spps`` (sorted rungs), ``target_seconds`` (the slowest other
+        time), ``reached_seconds`` (the top rung's time), ``capped``,
+        ``max_spp``, ``fastest_seconds`` (the fastest other time).
+    """
+    target = max(others, default=0.0)
+    fastest = min(others, default=math.inf)
+    steps = list(start or [])
+    spp = steps[-1] if steps else max(1, smallest_budget // 2)
+    capped = False
+    while True:
+        reached = float(np.median(run_rung(spp)))
+        if spp not in steps:
+            steps.append(spp)
+        if reached > target and len(steps) >= 2:
+            break
+        if 2 * spp > maximum_spp:
+            capped = True
+            break
+        spp *= 2
+    # Downwards too, while a method is faster than PT's smallest rung: nothing is extrapolated at either end.
+    steps.sort()
+    spp = steps[0]
+    lowest = float(np.median(run_rung(spp)))
+    while spp > 1 and lowest > fastest:
+        spp //= 2
+        steps.insert(0, spp)
+        lowest = float(np.median(run_rung(spp)))  # every rung listed is run (1 spp was once listed unrun)
+    return {"spps": steps, "target_seconds": target, "reached_seconds": reached, "capped": capped,
+            "max_spp": maximum_spp, "fastest_seconds": fastest}
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What :meth:`_CellRunner.run_all` measured besides the cells it recorded in the folder.
+
+    Attributes
+    ----------
+    ladder : dict or None
+        PT's ladder (:func:`ladder_search`), None without another method.
+    warm_up_seconds : dict
+        ``{row: seconds}`` of each row warmed up by this command.
+    method_seconds : float
+        Wall seconds in the methods (warm-ups and runs).
+    metric_seconds : float
+        Harness seconds computing the first repeat's metrics.
+    """
+
+    ladder: dict | None
+    warm_up_seconds: dict
+    method_seconds: float
+    metric_seconds: float
 
 
 class _CellRunner:
-    """Runs a comparison's cells: each (method, spp, seed) ``timing_repeats`` times, in rounds, and PT's ladder.
+    """Runs a comparison's cells: each (row, spp, seed) ``timing_repeats`` times, in rounds, and PT's ladder.
 
-    A repeat re-runs the whole method with the same budget (a method gives
-    the same image for the same seed, which is checked): re-timing the same
-    computation would leave out exactly what varies between runs (the
-    renderer's launches, allocation, caches). The time of a cell is the
-    median of its repeats' totals, its phases those of the median run, and
-    min and max are recorded.
+    A row is a method instance (a method name or a variant, its
+    :attr:`~sparselt.methods.base.Method.label`). A repeat re-runs the whole
+    method with the same budget (a method gives the same image for the same
+    seed, which is checked): re-timing the same computation would leave out
+    exactly what varies between runs (the renderer's launches, allocation,
+    caches). The time of a cell is the median of its repeats' totals, its
+    phases those of the median run, and min and max are recorded.
 
     The repeats run in **rounds**, not back to back: round 1 runs every
     method's cells once and then PT's ladder (whose extent follows the
@@ -513,35 +713,42 @@ class _CellRunner:
     the alternating order cancels a linear drift. Each repeat is recorded
     as it finishes (``repeats/NAME.json``), so an interrupted run resumes
     within a round; a cell enters ``cells/`` only with all its repeats.
+
+    ``rows_so_far`` are the rows of every run of the folder (a rerun's union):
+    the ladder covers the cells an earlier run finished too.
     """
 
-    def __init__(self, folder, context, options, config, reference, mask, exposure, record, progress, *, floor):
-        self.folder, self.context, self.options, self.config = folder, context, options, config
-        self.reference, self.mask, self.exposure, self.record, self.progress = reference, mask, exposure, record, progress
+    def __init__(self, folder, context, config, reference, mask, exposure, progress, *, floor, rows_so_far):
+        self.folder, self.context, self.config = folder, context, config
+        self.reference, self.mask, self.exposure, self.progress = reference, mask, exposure, progress
         self.floor = floor  # the reference's relMSE floor, or None when unknown (a one-pass reference)
+        self.rows_so_far = tuple(rows_so_far)
         self.seconds = 0.0
-        self.warm = set()
+        self.warm_up_seconds = {}
         self.metric_seconds = 0.0
-        self.contexts = {}
 
     # ----------------------------------------------------------------- the plan
     def run_all(self, methods, baseline):
-        """Every cell of ``methods`` (the baseline's at the run's budgets and on its ladder); return the ladder's
-        record (or None when there is no other method)."""
+        """Every cell of ``methods`` (the baseline's at the run's budgets and on its ladder).
+
+        Returns
+        -------
+        RunOutcome
+        """
         config = self.config
         budgets = [(spp, seed) for seed in config.seeds for spp in config.spps]
-        plan = [(method, spp, seed) for method in methods if method.name != baseline.name
-                and method.name in config.methods for spp, seed in budgets]
-        if baseline.name in config.methods:
+        plan = [(method, spp, seed) for method in methods if method.label != baseline.label
+                and method.label in config.methods for spp, seed in budgets]
+        if baseline.label in config.methods:
             plan += [(baseline, spp, seed) for spp, seed in budgets]
         for method, spp, seed in plan:  # round 1
             self._repeat(method, spp, seed, 1)
         ladder = None
-        if any(method.name != baseline.name for method in methods):
-            ladder = self._ladder(baseline, lambda spp: [self._repeat(baseline, spp, seed, 1) for seed in config.seeds],
+        if any(method.label != baseline.label for method in methods):
+            ladder = self._ladder(lambda spp: [self._repeat(baseline, spp, seed, 1) for seed in config.seeds],
                                   self._other_times(baseline, plan))
             plan += [(baseline, spp, seed) for spp in ladder["spps"] for seed in config.seeds
-                     if spp not in config.spps or baseline.name not in config.methods]
+                     if spp not in config.spps or baseline.label not in config.methods]
         for round_number in range(2, config.timing_repeats + 1):
             if self.progress:
                 print(f"compare: timing round {round_number} of {config.timing_repeats} ({len(plan)} cells)",
@@ -553,66 +760,32 @@ class _CellRunner:
         if ladder is not None:
             # The medians may have moved from round 1's times: extend the ladder (each new rung with all its
             # repeats) until it covers them again.
-            ladder = self._ladder(baseline, lambda spp: [self._finished(baseline, spp, seed) for seed in config.seeds],
+            ladder = self._ladder(lambda spp: [self._finished(baseline, spp, seed) for seed in config.seeds],
                                   self._other_times(baseline, plan), start=ladder["spps"])
-        return ladder
+        return RunOutcome(ladder=ladder, warm_up_seconds=dict(self.warm_up_seconds), method_seconds=self.seconds,
+                          metric_seconds=self.metric_seconds)
 
-    def _ladder(self, baseline, run_rung, others, start=None):
-        """PT at spp = s0, 2 s0, 4 s0, ... (s0 below the smallest budget) for every seed, until its time passes
-        every other method's time or the cap :attr:`ComparisonConfig.pt_ladder_max_spp`; then s0 / 2, s0 / 4,
-        ... down to 1 spp while PT's smallest rung is slower than the fastest method. ``run_rung(spp)`` runs a
-        rung and returns its times (one per seed); ``others`` are the other methods' times; ``start`` is a
-        ladder already run."""
-        config = self.config
-        target = max(others, default=0.0)
-        fastest = min(others, default=math.inf)
-        steps = list(start or [])
-        spp = steps[-1] if steps else max(1, min(config.spps) // 2)
-        capped = False
-        while True:
-            reached = float(np.median(run_rung(spp)))
-            if spp not in steps:
-                steps.append(spp)
-            if reached > target and len(steps) >= 2:
-                break
-            if 2 * spp > config.pt_ladder_max_spp:
-                capped = True
-                break
-            spp *= 2
-        # Downwards too, while a method is faster than PT's smallest rung: nothing is extrapolated at either end.
-        steps.sort()
-        spp = steps[0]
-        lowest = float(np.median(run_rung(spp)))
-        while spp > 1 and lowest > fastest:
-            spp //= 2
-            steps.insert(0, spp)
-            lowest = float(np.median(run_rung(spp)))  # every rung listed is run (1 spp was once listed unrun)
-        return {"spps": steps, "target_seconds": target, "reached_seconds": reached, "capped": capped,
-                "max_spp": config.pt_ladder_max_spp, "fastest_seconds": fastest}
+    def _ladder(self, run_rung, others, start=None):
+        return ladder_search(run_rung, others, smallest_budget=min(self.config.spps),
+                             maximum_spp=self.config.pt_ladder_max_spp, start=start)
 
     def _other_times(self, baseline, plan):
-        """The times of every other method's cell: this run's plan and those an earlier run of the folder
+        """The times of every other row's cell: this run's plan and those an earlier run of the folder
         finished (its union of budgets), which the ladder must cover too."""
-        times = {cell_name(method.name, spp, seed): self._time(method.name, spp, seed)
-                 for method, spp, seed in plan if method.name != baseline.name}
+        times = {cell_name(method.label, spp, seed): self._time(method.label, spp, seed)
+                 for method, spp, seed in plan if method.label != baseline.label}
         for name, done in self.folder.cells().items():
-            if done["row"]["method"] != baseline.name and done["row"]["method"] in self.record["config"]["methods"]:
+            if done["row"]["method"] != baseline.label and done["row"]["method"] in self.rows_so_far:
                 times.setdefault(name, done["row"]["seconds_total"])
         return list(times.values())
 
     # ----------------------------------------------------------------- one cell
-    def _context(self, method):
-        if method.name not in self.contexts:
-            self.contexts[method.name] = self.context.with_options(self.options[method.name])
-        return self.contexts[method.name]
-
     def _repeats(self, name):
-        path = f"repeats/{name}.json"
-        return self.folder.read_json(path) if self.folder.exists(path) else None
+        return self.folder.repeats(name)
 
-    def _time(self, method_name, spp, seed):
+    def _time(self, row, spp, seed):
         """The cell's time so far: the median of its repeats (the finished cell's time when it is done)."""
-        name = cell_name(method_name, spp, seed)
+        name = cell_name(row, spp, seed)
         done = self.folder.cell(name)
         if done is not None:
             return done["row"]["seconds_total"]
@@ -620,35 +793,35 @@ class _CellRunner:
 
     def _repeat(self, method, spp, seed, round_number):
         """Run repeat ``round_number`` of a cell unless it is done; return the cell's time so far."""
-        name = cell_name(method.name, spp, seed)
+        row = method.label
+        name = cell_name(row, spp, seed)
         done = self.folder.cell(name) is not None
         partial = None if done else self._repeats(name)
         if done or (partial is not None and len(partial["totals"]) >= round_number):
-            return self._time(method.name, spp, seed)
-        context = self._context(method)
-        if method.name not in self.warm:
+            return self._time(row, spp, seed)
+        context = self.context
+        if row not in self.warm_up_seconds:
             warm_start = time.perf_counter()
             method.warm_up(context)
-            self.record["warm_up_seconds"][method.name] = time.perf_counter() - warm_start
-            self.seconds += self.record["warm_up_seconds"][method.name]
-            self.warm.add(method.name)
+            self.warm_up_seconds[row] = time.perf_counter() - warm_start
+            self.seconds += self.warm_up_seconds[row]
         budget = Budget(spp=spp, seed=seed)
         run_start = time.perf_counter()
-        result = method.run(context, budget)
+        result = run_timed(method, context, budget)
         wall = time.perf_counter() - run_start
         self.seconds += wall
         seconds = check_result(method, result, context, budget, wall_seconds=wall)
         if partial is None:
             metrics_start = time.perf_counter()
-            row = _row(method.name, spp, seed, result, seconds, self.reference, self.mask)
+            cells_row = _row(row, spp, seed, result, seconds, self.reference, self.mask)
             self.metric_seconds += time.perf_counter() - metrics_start  # harness time, never a method's
             self.folder.write_image(f"{IMAGES}/{name}", result.image, exposure=self.exposure)
-            partial = {"row": row, "details": result.details, "phases": [], "totals": [], "wall_seconds": [],
+            partial = {"row": cells_row, "details": result.details, "phases": [], "totals": [], "wall_seconds": [],
                        "repeat_image_difference": 0.0}
             if self.progress:
-                print(f"compare: {method.name:18s} spp {spp:5d} seed {seed}: {row['seconds_total']:7.3f} s "
-                      f"(repeat 1 of {self.config.timing_repeats}), SSIM {row['ssim']:.3f}, relMSE "
-                      f"{row['relmse']:.4g}, luminance x{row['luminance_ratio']:.3f}", file=sys.stderr)
+                print(f"compare: {row:18s} spp {spp:5d} seed {seed}: {cells_row['seconds_total']:7.3f} s "
+                      f"(repeat 1 of {self.config.timing_repeats}), SSIM {cells_row['ssim']:.3f}, relMSE "
+                      f"{cells_row['relmse']:.4g}, luminance x{cells_row['luminance_ratio']:.3f}", file=sys.stderr)
         else:
             first = np.load(self.folder.path_of(f"{IMAGES}/{name}.npy"))
             scale = float(np.abs(first).max()) or 1.0
@@ -656,14 +829,14 @@ class _CellRunner:
             # Atomic accumulation (the global guided mode splats samples into pixels from many threads) sums in
             # another order each run: equal to float32 rounding, not bitwise. Anything larger is a breach.
             if difference > 1e-4:
-                raise ValueError(f"method {method.name!r} gave another image when run again with the same seed "
+                raise ValueError(f"method {row!r} gave another image when run again with the same seed "
                                  f"({seed}) at spp {spp} (largest difference {difference:.2g} of the image's "
                                  "maximum): a method must be a function of its budget")
             partial["repeat_image_difference"] = max(partial["repeat_image_difference"], difference)
         partial["phases"].append(seconds)
         partial["totals"].append(sum(seconds.values()))
         partial["wall_seconds"].append(wall)
-        self.folder.write_json(f"repeats/{name}.json", partial)
+        self.folder.record_repeat(name, partial)
         return float(np.median(partial["totals"]))
 
     def _finished(self, method, spp, seed):
@@ -674,7 +847,7 @@ class _CellRunner:
 
     def _finish(self, method, spp, seed):
         """Record a cell whose repeats are all in: median time, min, max, the median run's phases."""
-        name = cell_name(method.name, spp, seed)
+        name = cell_name(method.label, spp, seed)
         done = self.folder.cell(name)
         if done is not None:
             return done["row"]["seconds_total"]
@@ -692,24 +865,21 @@ class _CellRunner:
         self.folder.record_cell(name, {"row": row, "details": partial["details"], "seconds": seconds,
                                        "repeat_totals": totals,
                                        "repeat_image_difference": partial["repeat_image_difference"],
-                                       "options": self.options[method.name].record(),
+                                       "options": method.options.record(),
                                        "wall_seconds": partial["wall_seconds"]})
         return row["seconds_total"]
 
 
-def method_record(method, options):
-    """What ``compare.json`` and the reports know of a method: description, roles, source, resolved options."""
+def method_record(method):
+    """What ``compare.json`` and the reports know of a row's method: description, roles, source, resolved options
+    (and, for a variant, the method it is a variant of: ``method``)."""
     from ..methods.registry import method_source
 
-    return dict(description=method.description, source=method_source(method.name), options=options.record(),
-                **method.roles())
-
-
-def comparison_folder(config, spec, out, *, overwrite=False):
-    """The :class:`~sparselt.storage.folder.ExperimentFolder` of a comparison: its identity is the configuration
-    (defaults explicit, without the lists a rerun may extend) and the scene's content identity."""
-    return ExperimentFolder(out, kind="compare", identity=config.identity(), scene=scene_identity(spec),
-                            overwrite=overwrite, growable=("method_options",))
+    record = dict(description=method.description, source=method_source(method.name),
+                  options=method.options.record(), **method.roles())
+    if method.label != method.name:
+        record["method"] = method.name
+    return record
 
 
 def _row(name, spp, seed, result, seconds, reference, mask=None):
@@ -722,7 +892,4 @@ def _row(name, spp, seed, result, seconds, reference, mask=None):
 
 def _load_rows(folder, methods):
     """Every finished cell in the folder: this run's and those of earlier runs of the same comparison."""
-    rows = [record["row"] for record in folder.cells().values()]
-    order = {name: index for index, name in enumerate(methods)}
-    rows.sort(key=lambda row: (order.get(row["method"], len(order)), row["method"], row["seed"], row["spp"]))
-    return rows
+    return in_comparison_order([record["row"] for record in folder.cells().values()], methods)

@@ -72,7 +72,6 @@ from ..fourier.integration import METHODS
 from ..fourier.sparse import sample_support
 from ..measurement import meminfo_bytes
 from ..provenance import environment_record
-from ..storage.folder import ExperimentFolder
 from .integration_child import CHILD_MODULE, CHILD_TIMEOUT_SECONDS, REPEAT_SECONDS, run_child
 from .integration_report import (
     CHECK_TOLERANCE,
@@ -101,6 +100,7 @@ from .integration_signal import (
     contributing_coefficients,
     thesis_signal,
 )
+from .protocol import Experiment, Unfinished, run_experiment
 
 __all__ = [
     "BYTES_PER_VALUE",
@@ -399,60 +399,107 @@ def run_integration_benchmark(out, *, sizes=DEFAULT_SIZES, methods=METHODS, seed
     ----------
     Thesis section 4.3 (methodology), Table 4.1, Figures 4.1 and 4.2.
     """
-    sizes, methods, seed, repeats, density, check_max_size, minimum_reaching = _validate(
-        sizes, methods, seed, repeats, density, check_max_size, minimum_reaching)
-    if not os.path.exists("/proc/self/status"):
-        raise RuntimeError("peak memory is read from /proc/self/status, which this system lacks (Linux only)")
-    identity = {"sizes": list(sizes), "methods": list(methods), "seed": seed, "repeats": repeats, "density": density,
-                "check_max_size": check_max_size, "minimum_reaching": minimum_reaching}
-    folder = ExperimentFolder(out, kind="bench-integrate", identity=identity, overwrite=overwrite)
-    folder.inspect()  # refusals (foreign files, another identity, a lock) before anything runs
-    config = dict(identity, **{
-        "experiment": "integration-benchmark",
-        "thesis": "chapter 4, section 4.3, Table 4.1, Figures 4.1-4.2",
-        "repeat_seconds": REPEAT_SECONDS,
-        "dimensions": DIMENSIONS,
-        "keep_axes": list(KEEP_AXES),
-        "dtype": "complex128",
-        "values": "uniform in [0, 1)",
-        "support": ("uniform without repetition, then at least min(minimum_reaching, K) coefficients moved onto the "
-                    "integration plane" if minimum_reaching else "uniform without repetition"),
-        "time_block_values": TIME_BLOCK_VALUES,
-        "check_tolerance": CHECK_TOLERANCE,
-        "memory_floor_bytes": MEMORY_FLOOR_BYTES,
-        "fft_threads": _fft_threads(),
-        "cpu_count": os.cpu_count(),
-        "memory_total_bytes": meminfo_bytes("MemTotal"),
-    })
-    environment = environment_record()
-    with folder.open():
-        folder.write_json("config.json", {"config": config, "environment": environment})
-        measurements = []
-        total = len(sizes) * len(methods)
-        for size in sizes:
-            for method in methods:
-                name = f"{method}-s{size}"
-                record = folder.cell(name)
-                if record is not None:
-                    item = measurement_from_record(record)
-                    note = " (measured by an earlier run)"
-                else:
-                    item = _measure(size, method, seed=seed, density=density, minimum_reaching=minimum_reaching,
-                                    repeats=repeats, check_max_size=check_max_size)
-                    note = ""
-                    if item.measured:  # skips and failures depend on this machine's state: tried again on a rerun
-                        folder.record_cell(name, measurement_record(item))
-                measurements.append(item)
-                if progress:
-                    print(f"[{len(measurements)}/{total}] {progress_line(item)}{note}", file=sys.stderr, flush=True)
-        result, table = write_report(folder, summarise(tuple(measurements), sizes, methods), config, environment)
-        folder.complete(measured=sum(item.measured for item in measurements), cells=total)
+    experiment = IntegrationBenchmark(sizes=sizes, methods=methods, seed=seed, repeats=repeats, density=density,
+                                      check_max_size=check_max_size, minimum_reaching=minimum_reaching,
+                                      progress=progress)
+    result, table = run_experiment(experiment, out, overwrite=overwrite, progress=False)  # its own lines
     if progress:
         print(table)
     warning = empty_image_warning(result)
     if warning is not None:
         warnings.warn(f"integration benchmark: {warning}", RuntimeWarning, stacklevel=2)
     return result
+
+
+class IntegrationBenchmark(Experiment):
+    """``sparselt bench integrate`` as an experiment: one cell per ``(method, s)`` measurement; the report is
+    :func:`~sparselt.experiments.integration_report.write_report`'s files.
+
+    A measurement skipped for memory or whose child failed depends on this
+    machine's state, not on the identity: it reaches the report but is not
+    recorded (:class:`~sparselt.experiments.protocol.Unfinished`), so a rerun
+    tries it again. ``config.json`` is written when the folder opens, before
+    any measurement. Parameters are those of :func:`run_integration_benchmark`;
+    :meth:`validate` checks and normalises them (sizes ascending).
+    """
+
+    kind = "bench-integrate"
+    cell_unit = "measurement"
+
+    def __init__(self, *, sizes=DEFAULT_SIZES, methods=METHODS, seed=0, repeats=5, density=THESIS_DENSITY,
+                 check_max_size=CHECK_MAX_SIZE, minimum_reaching=MINIMUM_REACHING, progress=True):
+        self.sizes, self.methods, self.seed, self.repeats = sizes, methods, seed, repeats
+        self.density, self.check_max_size, self.minimum_reaching = density, check_max_size, minimum_reaching
+        self.progress = progress
+
+    def validate(self):
+        (self.sizes, self.methods, self.seed, self.repeats, self.density, self.check_max_size,
+         self.minimum_reaching) = _validate(self.sizes, self.methods, self.seed, self.repeats, self.density,
+                                            self.check_max_size, self.minimum_reaching)
+        if not os.path.exists("/proc/self/status"):
+            raise RuntimeError("peak memory is read from /proc/self/status, which this system lacks (Linux only)")
+
+    def identity(self):
+        return {"sizes": list(self.sizes), "methods": list(self.methods), "seed": self.seed, "repeats": self.repeats,
+                "density": self.density, "check_max_size": self.check_max_size,
+                "minimum_reaching": self.minimum_reaching}
+
+    def prepare(self):
+        """The resolved configuration (the identity, the constants the report quotes, this machine) and the
+        environment, both recorded in ``config.json``."""
+        config = dict(self.identity(), **{
+            "experiment": "integration-benchmark",
+            "thesis": "chapter 4, section 4.3, Table 4.1, Figures 4.1-4.2",
+            "repeat_seconds": REPEAT_SECONDS,
+            "dimensions": DIMENSIONS,
+            "keep_axes": list(KEEP_AXES),
+            "dtype": "complex128",
+            "values": "uniform in [0, 1)",
+            "support": ("uniform without repetition, then at least min(minimum_reaching, K) coefficients moved onto "
+                        "the integration plane" if self.minimum_reaching else "uniform without repetition"),
+            "time_block_values": TIME_BLOCK_VALUES,
+            "check_tolerance": CHECK_TOLERANCE,
+            "memory_floor_bytes": MEMORY_FLOOR_BYTES,
+            "fft_threads": _fft_threads(),
+            "cpu_count": os.cpu_count(),
+            "memory_total_bytes": meminfo_bytes("MemTotal"),
+        })
+        return {"config": config, "environment": environment_record()}
+
+    def begin(self, folder, state):
+        folder.write_json("config.json", {"config": state["config"], "environment": state["environment"]})
+
+    def _cells(self):
+        """Cell name -> ``(s, method)``, in the order they are measured (sizes ascending, then methods)."""
+        return {f"{method}-s{size}": (size, method) for size in self.sizes for method in self.methods}
+
+    def plan(self):
+        return list(self._cells())
+
+    def run_cell(self, name, state, folder):
+        size, method = self._cells()[name]
+        item = _measure(size, method, seed=self.seed, density=self.density, minimum_reaching=self.minimum_reaching,
+                        repeats=self.repeats, check_max_size=self.check_max_size)
+        record = measurement_record(item)
+        return record if item.measured else Unfinished(record)
+
+    def cell_finished(self, name, record, *, resumed):
+        if self.progress:
+            names = self.plan()
+            note = " (measured by an earlier run)" if resumed else ""
+            print(f"[{names.index(name) + 1}/{len(names)}] {progress_line(measurement_from_record(record))}{note}",
+                  file=sys.stderr, flush=True)
+
+    def report(self, folder, state, records):
+        """Every file of :func:`~sparselt.experiments.integration_report.write_report`; returns the result and the
+        Markdown table."""
+        measurements = tuple(measurement_from_record(records[name]) for name in self.plan())
+        return write_report(folder, summarise(measurements, self.sizes, self.methods), state["config"],
+                            state["environment"])
+
+    def summary(self, result):
+        result, _ = result
+        return {"measured": sum(item.measured for item in result.measurements), "cells": len(self.plan())}
 
 
 def _fft_threads():

@@ -28,7 +28,7 @@ Files written into the benchmark's folder
 Every file goes through the benchmark's
 :class:`~sparselt.storage.folder.ExperimentFolder`; every table is a
 :class:`~sparselt.report.Table`; the thesis's complexities come from
-:mod:`sparselt.thesis_numbers` (Table 4.1), never typed here.
+:mod:`sparselt.thesis.numbers` (Table 4.1), never typed here.
 
 References
 ----------
@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..report import Table, markdown_document
-from ..thesis_numbers import thesis_text
+from ..thesis.numbers import thesis_text
 from .integration_signal import DIMENSIONS
 
 CHECK_TOLERANCE = 1e-9
@@ -78,7 +78,7 @@ def thesis_complexity(method):
     tuple of str
         ``(time, memory)`` as printed, without the LaTeX dollars, e.g.
         ``('O(P \\log(P))', 'O(K + P)')`` for ``'convolution'``; read through
-        :func:`sparselt.thesis_numbers.thesis_text`.
+        :func:`sparselt.thesis.numbers.thesis_text`.
 
     Raises
     ------

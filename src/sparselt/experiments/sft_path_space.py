@@ -34,37 +34,17 @@ import numpy as np
 
 from ..checks import check_integer, check_positive_finite
 from ..images import reference_exposure
-from ..methods.base import Budget, ComparisonContext
+from ..methods.base import Budget, ComparisonContext, run_timed
 from ..methods.registry import get_method
 from ..methods.options import resolve_options
 from ..methods.sft_reconstruction import SftOptions, reconstruct
 from ..provenance import environment_record
 from ..recovery.path_space import largest_energy_fraction
-from ..rendering import mitsuba_backend
 from ..rendering.baseline import METHOD_SEED_LIMIT, cached_reference
-from ..rendering.layout import path_layout
-from ..rendering.identity import scene_identity
-from ..rendering.scenes import get_scene
-from ..storage.folder import ExperimentFolder
+from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
+from ..thesis.tables import THESIS_SHAPE, table_6_1
+from .protocol import Experiment, run_experiment
 from .compare import IMAGES, RELMSE_EPSILON, check_reference_spp, quality
-
-def thesis_table_6_1():
-    """Thesis Table 6.1 (6.1.2: K = N / 10^4 of the 100x100x4^8 path space): alpha -> sample counts.
-
-    Returns
-    -------
-    dict
-        ``{alpha: {'support', 'magnitude', 'total', 'spp'}}`` for every row
-        of the table, read through :mod:`sparselt.thesis_numbers`.
-    """
-    from ..thesis_numbers import thesis_rows
-
-    keys = ("support", "magnitude", "total", "spp")
-    columns = ("Support Detection", "Magnitude Estimation", "Total Samples", "Samples per Pixel")
-    return {int(label): dict(zip(keys, values)) for label, values in thesis_rows("6.1", columns)}
-
-
-THESIS_SHAPE = (100, 100) + (4,) * 8
 
 
 @dataclass(frozen=True)
@@ -81,29 +61,40 @@ class Table61Config:
     snr: float = 10.0
     seed: int = 1
     reference_spp: int = 1024
-    max_depth: int = 3
+    max_depth: int = DEFAULT_MAX_DEPTH
     compressibility_shape: tuple | None = None
     compressibility_spps: tuple = (1, 16, 64)
-    variant: str = "llvm_ad_rgb"
+    variant: str = DEFAULT_VARIANT
     scene_parameters: tuple = ()  # values of a scene file's $name parameters (-D name=value), sorted
+    aperture: float | None = None
+    focus_distance: float | None = None
+
+    @property
+    def setup(self):
+        """The :class:`~sparselt.rendering.setup.SceneSetup` of the experiment: scene, parameters, lens, kind, grid."""
+        return SceneSetup(scene=self.scene, kind=self.kind, shape=self.shape, max_depth=self.max_depth,
+                          parameters=self.scene_parameters, aperture=self.aperture,
+                          focus_distance=self.focus_distance, variant=self.variant)
 
     def record(self):
-        return {key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()}
+        record = {key: list(value) if isinstance(value, tuple) else value for key, value in asdict(self).items()}
+        for name in ("aperture", "focus_distance"):  # recorded only when given: earlier folders' identities stay
+            if record[name] is None:
+                del record[name]
+        return record
 
 
 def validate(config):
     """Every check that needs no renderer; ValueError/TypeError naming the bad value."""
-    if config.kind not in ("path", "path-indirect", "dof", "indirect"):
-        raise ValueError(f"table61 evaluates kinds path, path-indirect, dof, indirect; got {config.kind!r}")
-    if len(config.shape) < 2:
-        raise ValueError(f"shape {tuple(config.shape)} needs the two image-plane axes")
-    for size in config.shape:
-        check_integer("every shape entry", size, 1)
-    if min(config.shape[:2]) < 11:
-        raise ValueError(f"the image plane {tuple(config.shape[:2])} must be at least 11x11 pixels (the SSIM window)")
+    if len(config.shape) >= 2:  # the SFT's own bounds first: they are tighter than the setup's
+        if min(config.shape[:2]) < 11:
+            raise ValueError(f"the image plane {tuple(config.shape[:2])} must be at least 11x11 pixels (the SSIM "
+                             "window)")
+        size = math.prod(config.shape)
+        if size >= 2**31:
+            raise ValueError(f"shape {tuple(config.shape)} has {size} cells; the SFT supports at most 2**31 - 1")
+    config.setup.validate()  # kind, depth, shape, scene, parameters, lens: the scene setup's one check
     size = math.prod(config.shape)
-    if size >= 2**31:
-        raise ValueError(f"shape {tuple(config.shape)} has {size} cells; the SFT supports at most 2**31 - 1")
     if not config.alphas:
         raise ValueError("give at least one alpha")
     for alpha in config.alphas:
@@ -138,22 +129,44 @@ def run_table61(config, out, *, progress=True):
         A kind or shape the oracle cannot evaluate, samples per point <= 0,
         alpha < 1, K larger than the grid allows: before any sampling.
     """
-    sparsity = validate(config)
-    say = print if progress else (lambda *arguments, **options: None)
-    spec = get_scene(config.scene).with_parameters(config.scene_parameters)
-    identity = dict(config.record(), sparsity=sparsity, relmse_epsilon=RELMSE_EPSILON)
-    folder = ExperimentFolder(out, kind="table61", identity=identity, scene=scene_identity(spec))
-    folder.inspect()  # refusals before the scene loads
-    resolution = tuple(config.shape[:2])
-    scene = mitsuba_backend.MitsubaScene(spec, resolution, variant=config.variant)
-    layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens, hide_emitters=spec.hide_emitters)
-    if len(layout.axes) != len(config.shape):
-        raise ValueError(f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max depth "
-                         f"{config.max_depth} has {len(layout.axes)}: {', '.join(layout.axes)}")
-    with folder.open():
-        rows = _run_table61(folder, config, spec, scene, layout, sparsity, say, progress)
-        folder.complete()
-    return rows
+    return run_experiment(Table61Experiment(config), out, progress=progress)
+
+
+class Table61Experiment(Experiment):
+    """``sparselt table61`` as an experiment: one cell per (alpha, samples per point) run of the SFT, and one for
+    the compressibility measurement; the report is Table 6.1, the compressibility table and Figures 6.1/6.2."""
+
+    kind = "table61"
+    cell_unit = "run"
+
+    def __init__(self, config):
+        self.config = config
+        self.sparsity = None
+
+    def validate(self):
+        self.sparsity = validate(self.config)
+
+    def identity(self):
+        return dict(self.config.record(), sparsity=self.sparsity, relmse_epsilon=RELMSE_EPSILON)
+
+    def scene_identity(self):
+        return self.config.setup.scene_identity
+
+    def prepare(self):
+        loaded = self.config.setup.load(tuple(self.config.shape[:2]))
+        return loaded.scene, loaded.layout
+
+    def run_cells(self, folder, state, *, progress):
+        scene, layout = state
+        say = print if progress else (lambda *arguments, **options: None)
+        return _run_table61(folder, self.config, self.config.setup.spec, scene, layout, self.sparsity, say, progress)
+
+    def report(self, folder, state, records):
+        """Table 6.1 beside ours, the compressibility table, Figures 6.1/6.2; returns the runs' rows."""
+        _write_table(folder, self.config, records["rows"], self.sparsity)
+        _write_compressibility(folder, self.config, records["compressibility"], self.sparsity)
+        _figure(folder, records["rows"], records["exposure"])
+        return records["rows"]
 
 
 def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
@@ -185,16 +198,15 @@ def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
         say(f"table61: SFT alpha {alpha:g}, {spp} path samples per lattice point, K = {sparsity} of "
             f"N = {math.prod(config.shape)}")
         options = resolve_options(SftOptions, dict(given, alpha=alpha), grid_shape=config.shape, owner="sft")
-        context = base.with_options(options)
         start = time.perf_counter()
-        result = reconstruct(context, spp, config.seed)
+        result = reconstruct(base, spp, config.seed, options)
         image = result.image()
         seconds = time.perf_counter() - start
         # One PT launch takes at most 2**16 - 1 spp (then the reference's own noise dominates anyway).
         equal_samples_spp = min(max(1, round(result.path_samples / pixels)), 2**16 - 1)
         equal_time_spp = min(max(1, int(seconds * pt_rate / pixels)), 2**16 - 1)
-        pt_samples = pt.run(base, Budget(spp=equal_samples_spp, seed=config.seed)).image
-        pt_time = pt.run(base, Budget(spp=equal_time_spp, seed=config.seed)).image
+        pt_samples = run_timed(pt, base, Budget(spp=equal_samples_spp, seed=config.seed)).image
+        pt_time = run_timed(pt, base, Budget(spp=equal_time_spp, seed=config.seed)).image
         row = {
             "alpha": alpha, "samples_per_point": spp, "sparsity": sparsity, "cells": math.prod(config.shape),
             "support_samples": result.support_samples, "magnitude_samples": result.magnitude_samples,
@@ -216,16 +228,13 @@ def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
             f"SFT relMSE {row['sft']['relmse']:.3g} vs PT {row['pt_equal_samples']['relmse']:.3g} at equal samples")
 
     compressibility = _compressibility(config, spec, sparsity, folder, say)
-    _write_table(folder, config, rows, sparsity)
-    _write_compressibility(folder, config, compressibility, sparsity)
-    _figure(folder, rows, exposure)
-    return rows
+    return {"rows": rows, "compressibility": compressibility, "exposure": exposure}
 
 
 def _pt_rate(pt, context, pixels, seed):
     """Path samples per second of ``pt`` here (warm), to give PT the SFT's time."""
     spp = 16
-    result = pt.run(context, Budget(spp=spp, seed=seed))
+    result = run_timed(pt, context, Budget(spp=spp, seed=seed))
     return pixels * spp / max(result.total_seconds, 1e-9)
 
 
@@ -256,35 +265,9 @@ def _compressibility(config, spec, sparsity, folder, say):
 
 
 def _table_6_1(config, rows, sparsity):
-    """Table 6.1 beside ours (one :class:`~sparselt.report.Table`): sample counts, image quality, time per run."""
-    from ..report import Table
-    from ..thesis_numbers import thesis_table
-
-    thesis_rows = thesis_table_6_1()
-    cells = math.prod(THESIS_SHAPE)
-    table_rows = []
-    for row in rows:
-        thesis = thesis_rows.get(int(row["alpha"])) if float(row["alpha"]).is_integer() else None
-        thesis_cells = ([str(thesis[key]) for key in ("support", "magnitude", "total", "spp")] if thesis
-                        else ["-"] * 4)
-        table_rows.append((str(row["alpha"]), [
-            str(row["samples_per_point"]), str(row["support_samples"]), str(row["magnitude_samples"]),
-            str(row["total_samples"]), f"{row['samples_per_pixel']:.1f}", f"{row['fraction_of_signal']:.3f}",
-            *thesis_cells, f"{row['sft']['ssim']:.3f}", f"{row['sft']['relmse']:.3g}",
-            f"{row['pt_equal_samples']['ssim']:.3f}", f"{row['pt_equal_samples']['relmse']:.3g}",
-            f"{row['pt_equal_time']['relmse']:.3g}", f"{row['seconds']:.1f}"]))
-    return Table(
-        caption=f"Table 6.1: {thesis_table('6.1')['caption']}, {config.scene} ({config.kind}, grid "
-                f"{'x'.join(map(str, config.shape))}, K = {sparsity})",
-        label_header="alpha",
-        columns=["samples per point", "support detection", "magnitude estimation", "total samples",
-                 "samples per pixel", "lattice points / N", "thesis support detection",
-                 "thesis magnitude estimation", "thesis total samples", "thesis samples per pixel", "SFT SSIM",
-                 "SFT relMSE", "PT same samples SSIM", "PT same samples relMSE", "PT same time relMSE", "seconds"],
-        kinds=[""] + ["ours"] * 5 + ["thesis"] * 4 + ["ours"] * 6, rows=table_rows,
-        notes=[f"Thesis: grid {'x'.join(map(str, THESIS_SHAPE))} = {cells:,} cells, K = N / 10^4 = "
-               f"{round(cells * 1e-4):,}, one path sample per lattice point; relMSE epsilon {RELMSE_EPSILON}. "
-               "PT same samples / same time: path tracing given the SFT's path samples / seconds."])
+    """Table 6.1 beside ours (:func:`sparselt.thesis.tables.table_6_1`): sample counts, image quality, time per run."""
+    return table_6_1(rows, caption_suffix=f", {config.scene} ({config.kind}, grid {'x'.join(map(str, config.shape))}, "
+                                          f"K = {sparsity})", epsilon=RELMSE_EPSILON)
 
 
 def _write_table(folder, config, rows, sparsity):

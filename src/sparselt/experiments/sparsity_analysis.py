@@ -33,7 +33,6 @@ either way. Every table is a :class:`~sparselt.report.Table`.
 
 from __future__ import annotations
 
-import hashlib
 import math
 
 import numpy as np
@@ -42,12 +41,14 @@ from ..analysis.metrics import image_ssim, peak_signal_to_noise_ratio, reference
 from ..analysis.sparsity import signal_gini
 from ..analysis.threshold import check_fraction, check_gamma, gamma_map, hard_threshold_image
 from ..checks import check_integer
+from ..digest import bytes_digest
 from ..images import srgb_tonemap
 from ..provenance import environment_record
 from ..report import Table
 from ..report.plotting import pyplot
 from ..signal import Signal
-from ..storage.folder import ExperimentFolder, signal_identity
+from ..storage.folder import signal_identity
+from .protocol import Experiment, run_experiment
 
 DEFAULT_GAMMAS = (1.0, 0.5, 0.25, 0.1, 0.05)
 DEFAULT_FRACTIONS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1)
@@ -132,7 +133,7 @@ def analysis_identity(signal, gammas, fractions, grid_fractions, memory_limit_by
     identity = signal_identity(signal)
     if identity.get("content_digest") is None:
         data = np.ascontiguousarray(np.asarray(signal.data))
-        identity = dict(identity, content_digest="sha256:" + hashlib.sha256(data.tobytes()).hexdigest())
+        identity = dict(identity, content_digest="sha256:" + bytes_digest(data.tobytes()))
     return {"signal": identity, "gammas": list(gammas), "fractions": list(fractions),
             "grid_fractions": list(grid_fractions), "memory_limit_bytes": memory_limit_bytes}
 
@@ -182,30 +183,113 @@ def analyze_signal(signal, out, *, gammas=DEFAULT_GAMMAS, fractions=DEFAULT_FRAC
     Thesis 5.3 and 5.4.1 (Gini index, Tables 5.1/5.2), 7.1.2 and 7.2.1 (gamma
     mapping, Tables 7.1-7.3, hard thresholding).
     """
-    gammas = _check_gammas(gammas)
-    fractions = tuple(sorted(check_fraction(fraction) for fraction in fractions))
-    if not fractions:
-        raise ValueError("give at least one fraction")
-    if len(set(fractions)) != len(fractions):
-        raise ValueError(f"fractions {list(fractions)} repeat a value; give each fraction once")
-    if grid_fractions:
-        grid_fractions = tuple(check_fraction(fraction) for fraction in grid_fractions)
-        missing = [fraction for fraction in grid_fractions if fraction not in fractions]
-        if missing:
-            raise ValueError(f"grid fractions {missing} are not among the fractions analysed "
-                             f"({', '.join(f'{fraction:g}' for fraction in fractions)})")
-    else:
-        grid_fractions = fractions[:: max(1, math.ceil(len(fractions) / 4))][:4]
-    memory_limit_bytes = check_integer("memory_limit_bytes", memory_limit_bytes, 1)
-    identity = analysis_identity(signal, gammas, fractions, grid_fractions, memory_limit_bytes)
-    folder = ExperimentFolder(out, kind="analyze", identity=identity, scene=signal.meta.get("scene_identity"),
-                              overwrite=overwrite)
-    folder.inspect()  # refusals before any work
-    say = print if progress else (lambda *arguments, **options: None)
-    scene = signal.meta.get("scene", "signal")
-    with folder.open():
-        rows, ssim_rows, images, reference = _analyze(folder, signal, gammas, fractions, grid_fractions,
-                                                      memory_limit_bytes, say)
+    experiment = AnalysisExperiment(signal, gammas=gammas, fractions=fractions, grid_fractions=grid_fractions,
+                                    memory_limit_bytes=memory_limit_bytes, progress=progress)
+    return run_experiment(experiment, out, overwrite=overwrite, progress=False)  # its own lines, one per step
+
+
+def _cell_name(gamma):
+    return f"gamma-{gamma:g}"
+
+
+def _image_name(gamma, fraction):
+    return f"thresholded/gamma{gamma:g}_fraction{fraction:g}.npy"
+
+
+class AnalysisExperiment(Experiment):
+    """``sparselt analyze`` as an experiment: one cell per gamma (its Gini rows, its SSIM rows and the grid's
+    thresholded images); the report is the tables, the figures and ``analysis.json``.
+
+    Parameters are those of :func:`analyze_signal`; :meth:`validate` checks
+    and normalises them (fractions ascending, the grid's default).
+    """
+
+    kind = "analyze"
+    cell_unit = "gamma"
+
+    def __init__(self, signal, *, gammas=DEFAULT_GAMMAS, fractions=DEFAULT_FRACTIONS, grid_fractions=None,
+                 memory_limit_bytes=4 * 2**30, progress=True):
+        self.signal = signal
+        self.gammas, self.fractions, self.grid_fractions = gammas, fractions, grid_fractions
+        self.memory_limit_bytes = memory_limit_bytes
+        self._identity = None
+        self.say = print if progress else (lambda *arguments, **options: None)
+
+    def validate(self):
+        self.gammas = _check_gammas(self.gammas)
+        fractions = tuple(sorted(check_fraction(fraction) for fraction in self.fractions))
+        if not fractions:
+            raise ValueError("give at least one fraction")
+        if len(set(fractions)) != len(fractions):
+            raise ValueError(f"fractions {list(fractions)} repeat a value; give each fraction once")
+        self.fractions = fractions
+        if self.grid_fractions:
+            grid_fractions = tuple(check_fraction(fraction) for fraction in self.grid_fractions)
+            missing = [fraction for fraction in grid_fractions if fraction not in fractions]
+            if missing:
+                raise ValueError(f"grid fractions {missing} are not among the fractions analysed "
+                                 f"({', '.join(f'{fraction:g}' for fraction in fractions)})")
+            self.grid_fractions = grid_fractions
+        else:
+            self.grid_fractions = fractions[:: max(1, math.ceil(len(fractions) / 4))][:4]
+        self.memory_limit_bytes = check_integer("memory_limit_bytes", self.memory_limit_bytes, 1)
+        self._identity = None
+
+    def identity(self):
+        if self._identity is None:  # once: a signal held in memory is identified by a digest of all its data
+            self._identity = analysis_identity(self.signal, self.gammas, self.fractions, self.grid_fractions,
+                                               self.memory_limit_bytes)
+        return self._identity
+
+    def scene_identity(self):
+        return self.signal.meta.get("scene_identity")
+
+    def prepare(self):
+        """The signal's own image (every SSIM's reference and the grid's first column); the signal's data are
+        read by the first gamma that needs them."""
+        return {"reference": self.signal.image().astype(np.float64), "data": None}
+
+    def plan(self):
+        return [_cell_name(gamma) for gamma in self.gammas]
+
+    def run_cell(self, name, state, folder):
+        """One gamma: the Gini indices of the gamma-mapped signal, and each fraction's thresholded image against
+        the signal's image (SSIM, PSNR); the grid's images are written as ``thresholded/*.npy``."""
+        gamma = next(gamma for gamma in self.gammas if _cell_name(gamma) == name)
+        signal, reference = self.signal, state["reference"]
+        self.say(f"analyze: Gini indices at gamma {gamma:g}")
+        gini_rows = gini_table(signal, (gamma,), memory_limit_bytes=self.memory_limit_bytes)
+        if state["data"] is None:
+            state["data"] = np.asarray(signal.data)
+        size = math.prod(signal.shape)
+        gamma_ssim = []
+        for fraction in self.fractions:
+            image = hard_threshold_image(state["data"], fraction, gamma=gamma).transpose(1, 0, 2)
+            similarity = image_ssim(image, reference) if min(reference.shape[:2]) >= 11 else float("nan")
+            peak = float(np.percentile(reference, 99.9)) or 1.0
+            psnr = peak_signal_to_noise_ratio(np.clip(image, 0, peak), np.clip(reference, 0, peak), data_range=peak)
+            gamma_ssim.append((gamma, fraction, max(1, math.ceil(fraction * size)), similarity, psnr))
+            if fraction in self.grid_fractions:
+                folder.write_npy(_image_name(gamma, fraction), image)
+            self.say(f"analyze: gamma {gamma:g}, fraction {fraction:.0e}: SSIM {similarity:.4f}, PSNR {psnr:.2f} dB")
+        return {"gini": [list(row) for row in gini_rows], "ssim": [list(row) for row in gamma_ssim]}
+
+    def cell_finished(self, name, record, *, resumed):
+        if resumed:
+            self.say(f"analyze: gamma {name[len('gamma-'):]} already done")
+
+    def report(self, folder, state, records):
+        """Tables 5.1/5.2 and 7.1-7.3, ``gini.csv``, ``ssim.csv``, the SSIM figure, the image grid and
+        ``analysis.json``; returns the rows and the Tables 7.1-7.3 layout in Markdown."""
+        signal, gammas, reference = self.signal, self.gammas, state["reference"]
+        rows, ssim_rows, images = [], [], {}
+        for gamma in gammas:
+            record = records[_cell_name(gamma)]
+            rows += [tuple(row) for row in record["gini"]]
+            ssim_rows += [tuple(row) for row in record["ssim"]]
+            for fraction in self.grid_fractions:
+                images[gamma, fraction] = np.load(folder.path_of(_image_name(gamma, fraction)))
+        scene = signal.meta.get("scene", "signal")
         for stem, domain, caption in (
                 ("table_5_1_fourier", "fourier", f"Sparsity metrics in Fourier space ({signal.kind}, Table 5.1 layout)"),
                 ("table_5_2_canonical", "canonical",
@@ -219,66 +303,23 @@ def analyze_signal(signal, out, *, gammas=DEFAULT_GAMMAS, fractions=DEFAULT_FRAC
         folder.write_figure("ssim_vs_fraction.png", _plot_ssim(ssim_rows, gammas, title=f"{scene} ({signal.kind}): "
                                                                                         "hard-thresholded Fourier"),
                             dpi=120, bbox_inches="tight")
-        folder.write_figure("thresholded.png", _plot_grid(images, reference, gammas, grid_fractions), dpi=110,
+        folder.write_figure("thresholded.png", _plot_grid(images, reference, gammas, self.grid_fractions), dpi=110,
                             bbox_inches="tight")
         folder.write_json("analysis.json", {
             "signal": {key: signal.meta.get(key) for key in ("scene", "kind", "axes", "shape", "spp", "seed", "max_depth")},
-            "identity": identity,
+            "identity": self.identity(),
             "gammas": list(gammas),
-            "fractions": list(fractions),
-            "grid_fractions": list(grid_fractions),
+            "fractions": list(self.fractions),
+            "grid_fractions": list(self.grid_fractions),
             "ssim_convention": "sparselt.analysis.metrics.image_ssim: both images times the reference's exposure, "
                                "sRGB curve, SSIM with data_range 1 per channel",
             "gamma_mapping": "T = (I / max I) ** gamma with one maximum over all channels; inverse clips T < 0 to 0",
             "provenance": environment_record(),
         })
-        folder.complete(gammas=len(gammas), fractions=len(fractions))
-    return {"gini": rows, "ssim": ssim_rows, "gamma_table": gammas_table.markdown()}
+        return {"gini": rows, "ssim": ssim_rows, "gamma_table": gammas_table.markdown()}
 
-
-def _cell_name(gamma):
-    return f"gamma-{gamma:g}"
-
-
-def _image_name(gamma, fraction):
-    return f"thresholded/gamma{gamma:g}_fraction{fraction:g}.npy"
-
-
-def _analyze(folder, signal, gammas, fractions, grid_fractions, memory_limit_bytes, say):
-    """Every gamma's Gini and SSIM rows and grid images: read from its cell, or computed and recorded as one."""
-    reference = signal.image().astype(np.float64)
-    size = math.prod(signal.shape)
-    data = None
-    rows, ssim_rows, images = [], [], {}
-    for gamma in gammas:
-        record = folder.cell(_cell_name(gamma))
-        if record is not None:
-            say(f"analyze: gamma {gamma:g} already done")
-            rows += [tuple(row) for row in record["gini"]]
-            ssim_rows += [tuple(row) for row in record["ssim"]]
-            for fraction in grid_fractions:
-                images[gamma, fraction] = np.load(folder.path_of(_image_name(gamma, fraction)))
-            continue
-        say(f"analyze: Gini indices at gamma {gamma:g}")
-        gini_rows = gini_table(signal, (gamma,), memory_limit_bytes=memory_limit_bytes)
-        if data is None:
-            data = np.asarray(signal.data)
-        gamma_ssim = []
-        for fraction in fractions:
-            image = hard_threshold_image(data, fraction, gamma=gamma).transpose(1, 0, 2)
-            similarity = image_ssim(image, reference) if min(reference.shape[:2]) >= 11 else float("nan")
-            peak = float(np.percentile(reference, 99.9)) or 1.0
-            psnr = peak_signal_to_noise_ratio(np.clip(image, 0, peak), np.clip(reference, 0, peak), data_range=peak)
-            gamma_ssim.append((gamma, fraction, max(1, math.ceil(fraction * size)), similarity, psnr))
-            if fraction in grid_fractions:
-                images[gamma, fraction] = image
-                folder.write_npy(_image_name(gamma, fraction), image)
-            say(f"analyze: gamma {gamma:g}, fraction {fraction:.0e}: SSIM {similarity:.4f}, PSNR {psnr:.2f} dB")
-        folder.record_cell(_cell_name(gamma), {"gini": [list(row) for row in gini_rows],
-                                               "ssim": [list(row) for row in gamma_ssim]})
-        rows += gini_rows
-        ssim_rows += gamma_ssim
-    return rows, ssim_rows, images, reference
+    def summary(self, result):
+        return {"gammas": len(self.gammas), "fractions": len(self.fractions)}
 
 
 def _plot_ssim(rows, gammas, *, title):

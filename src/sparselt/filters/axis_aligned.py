@@ -189,6 +189,45 @@ def indirect_filter_width(minimum_distance, pixel_depth, pixels_per_tangent, *, 
     return np.where(sigma_pixels < MINIMUM_SIGMA, 0.0, sigma_pixels), np.where(usable, sigma_world, 0.0)
 
 
+def strided_gaussian_taps(sigma, maximum_radius):
+    """The taps of one pixel's strided Gaussian window: its width, reach and stride.
+
+    The one rule of :func:`axis_aligned_filter` (compiled into its kernel)
+    and of :func:`sparselt.methods.axis_aligned.filter_variance_factor`.
+
+    Parameters
+    ----------
+    sigma : float
+        The pixel's Gaussian width in pixels (non-negative).
+    maximum_radius : int
+        The window's half width never exceeds this (pixels).
+
+    Returns
+    -------
+    sigma : float
+        ``min(sigma, maximum_radius / 3)``: wider Gaussians are clipped to a
+        third of the window.
+    reach : int
+        The farthest tap's offset: the largest multiple of ``step`` within the
+        radius ``min(maximum_radius, ceil(3 sigma))``.
+    step : int
+        The stride between taps, ``max(1, int(sigma / 2))`` (at most about
+        ``6 x 6`` taps per side for any width: a wide Gaussian is smooth
+        enough to sample sparsely).
+
+    Notes
+    -----
+    Taps sit at ``-reach, -reach + step, ..., reach`` on each axis. Both the
+    width and the radius are clamped: the radius of a clipped width,
+    ``ceil(3 maximum_radius / 3)``, can exceed ``maximum_radius`` by one in
+    floating point.
+    """
+    sigma = min(sigma, maximum_radius / 3.0)
+    radius = min(maximum_radius, int(math.ceil(3.0 * sigma)))
+    step = max(1, int(sigma / 2.0))
+    return sigma, (radius // step) * step, step
+
+
 _KERNEL = None
 
 
@@ -196,6 +235,8 @@ def _compiled_kernel():
     global _KERNEL
     if _KERNEL is None:
         import numba
+
+        taps = numba.njit(cache=True)(strided_gaussian_taps)
 
         @numba.njit(parallel=True, cache=True)
         def kernel(image, sigma, guides, tolerance, fixed_guides, fixed_tolerance, maximum_radius, out, weights_out):
@@ -205,15 +246,12 @@ def _compiled_kernel():
             inverse_fixed = 0.5 / (fixed_tolerance * fixed_tolerance) if fixed_tolerance > 0 else 0.0
             for y in numba.prange(height):
                 for x in range(width):
-                    s = min(sigma[y, x], maximum_radius / 3.0)
+                    s, reach, step = taps(sigma[y, x], maximum_radius)
                     if s <= 0.0:
                         for c in range(channels):
                             out[y, x, c] = image[y, x, c]
                         weights_out[y, x] = 1.0
                         continue
-                    radius = min(maximum_radius, int(math.ceil(3.0 * s)))
-                    step = max(1, int(s / 2.0))
-                    reach = (radius // step) * step
                     inverse_spatial = 0.5 / (s * s)
                     tau = tolerance[y, x]
                     inverse_range = 0.5 / (tau * tau) if tau > 0 else 0.0

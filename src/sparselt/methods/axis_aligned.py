@@ -57,11 +57,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, depth_range,
-                                    dof_filter_width, indirect_filter_width)
+from ..cell_statistics import variance_from_sums
+from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, dof_filter_width, indirect_filter_width, strided_gaussian_taps)
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
+from .preconditions import ThinLens
 from .options import MethodOptions, option
-from ..rendering.mitsuba_backend import PIXEL_STATISTICS, REDUCTIONS
+from ..rendering.mitsuba.pixel_statistics import PIXEL_STATISTICS, REDUCTIONS
 from .registry import register
 
 
@@ -104,7 +105,7 @@ class AafIndirectOptions(AxisAlignedOptions):
 class PixelStatistics:
     """Per-pixel reductions of per-sample quantities, merged over a uniform pilot and allocated passes.
 
-    Each statistic (:data:`~sparselt.rendering.mitsuba_backend.PIXEL_STATISTICS`)
+    Each statistic (:data:`~sparselt.rendering.mitsuba.PIXEL_STATISTICS`)
     keeps its own per-pixel sample count: guides may come from the pilot alone.
 
     Parameters
@@ -150,7 +151,7 @@ class PixelStatistics:
 
         count = np.maximum(self._counts["rgb_squared"], 2).reshape(self.shape)[..., None].astype(np.float64)
         mean = self.total("rgb") / count
-        variance = np.maximum(self.total("rgb_squared") / count - mean * mean, 0.0) * count / (count - 1)
+        variance = variance_from_sums(self.total("rgb"), self.total("rgb_squared"), count, form="moment")
         level = luminance(mean)
         relative = variance.mean(axis=-1) / (level * level + 0.01)
         padded = np.pad(relative, 2, mode="edge")
@@ -160,9 +161,10 @@ class PixelStatistics:
 def filter_variance_factor(sigma, maximum_radius):
     """Variance of :func:`axis_aligned_filter`'s output over its input's, per pixel, for independent pixels.
 
-    ``sum w^2 / (sum w)^2`` of the strided Gaussian taps (separable: the
-    square of the 1-D factor), without the guide and the image border; 1
-    where ``sigma`` is 0.
+    ``sum w^2 / (sum w)^2`` of the strided Gaussian taps
+    (:func:`~sparselt.filters.axis_aligned.strided_gaussian_taps`, the
+    filter's own rule; separable: the square of the 1-D factor), without the
+    guide and the image border; 1 where ``sigma`` is 0.
     """
     sigma = np.round(np.minimum(np.asarray(sigma, dtype=np.float64), maximum_radius / 3.0), 2)
     values, inverse = np.unique(sigma, return_inverse=True)
@@ -170,9 +172,8 @@ def filter_variance_factor(sigma, maximum_radius):
     for index, value in enumerate(values):
         if value <= 0:
             continue
-        radius = min(int(maximum_radius), int(np.ceil(3.0 * value)))
-        step = max(1, int(value / 2.0))
-        offsets = np.arange(-(radius // step) * step, (radius // step) * step + 1, step)
+        _, reach, step = strided_gaussian_taps(value, int(maximum_radius))
+        offsets = np.arange(-reach, reach + 1, step)
         weights = np.exp(-0.5 * (offsets / value) ** 2)
         table[index] = (np.sum(weights ** 2) / np.sum(weights) ** 2) ** 2
     return table[inverse].reshape(sigma.shape)
@@ -220,7 +221,7 @@ class _AxisAligned(Method):
     """Pilot, allocation, allocated samples, analysis, filter: the pipeline both methods share.
 
     Subclasses give :attr:`statistics` (the per-pixel reductions every pass
-    gathers, :data:`~sparselt.rendering.mitsuba_backend.PIXEL_STATISTICS`),
+    gathers, :data:`~sparselt.rendering.mitsuba.PIXEL_STATISTICS`),
     :attr:`pilot_statistics` (those the pilot alone gives: guides),
     :meth:`widths` (the analysis) and :meth:`finish` (the filtered image).
     Every reduction happens in the sampling kernel; nothing per sample is
@@ -233,15 +234,14 @@ class _AxisAligned(Method):
 
     def warm_up(self, context):
         # A pilot of 2 spp and an allocated pass: both kernels and the filter compiled, result discarded.
-        self.run(context, Budget(spp=4, seed=WARM_UP_SEED))
+        self.run(context, Budget(spp=4, seed=WARM_UP_SEED), PhaseTimer())
 
     def check(self, context):
         """Refuse a context the analysis cannot describe, before any sampling (default: nothing)."""
 
-    def run(self, context, budget):
-        options = self.options_of(context)
+    def run(self, context, budget, timer):
+        options = self.options
         self.check(context)
-        timer = PhaseTimer()
         pilot_spp = min(budget.spp, max(2, int(round(options.pilot_fraction * budget.spp))))
         width, height = context.resolution
         statistics = PixelStatistics((height, width))
@@ -266,8 +266,8 @@ class _AxisAligned(Method):
                        width_scale=options.width_scale, maximum_radius=options.maximum_radius,
                        pilot_fraction=options.pilot_fraction, maximum_allocation=options.maximum_allocation)
         details.update(_summary(sigma))
-        return MethodResult(image=np.asarray(image, dtype=np.float32), seconds=timer.seconds,
-                            path_samples=int(statistics.counts.sum()), details=details)
+        return MethodResult(image=np.asarray(image, dtype=np.float32), path_samples=int(statistics.counts.sum()),
+                            details=details)
 
     def _draw_allocated(self, context, budget, first_index, extra, statistics, timer):
         """Draw ``extra[p]`` more samples of pixel ``p`` (sample indices from ``first_index``) into ``statistics``."""
@@ -309,6 +309,7 @@ class AafDof(_AxisAligned):
     name = "aaf-dof"
     kinds = ("dof",)
     Options = AafDofOptions
+    requires = (ThinLens(),)
     statistics = ("rgb", "nearest", "farthest")
     description = ("axis-aligned filter for depth of field (Mehta et al. 2014): per-pixel Gaussian 0.307 x the "
                    "least circle of confusion of the pixel's samples, guided by the defocus of its nearest and "

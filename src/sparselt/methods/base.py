@@ -1,12 +1,20 @@
 """The one interface every equal-time comparison method implements (thesis 8.1.1).
 
-A method gets a budget (samples per pixel and a seed) and the comparison's
+A method is an estimator with its options: an instance of a :class:`Method`
+subclass carries its resolved options (:attr:`Method.options`), so two
+variants of one method (``cosamp`` at gamma 0.25 and 0.5) are two instances
+side by side in one comparison. It gets the comparison's
 :class:`ComparisonContext` (scene loaded in the renderer, signal grid, output
-resolution, options) and returns a :class:`MethodResult`: the image and where
-its time went. :func:`sparselt.experiments.compare.compare` runs methods from
-the registry in :mod:`sparselt.methods`; new methods (filters, guiding, the
-SFT) plug in by subclassing :class:`Method` and registering, without touching
-the harness.
+resolution), a budget (samples per pixel and a seed) and the harness's
+:class:`PhaseTimer`, and returns a :class:`MethodResult`: the image, the path
+samples drawn and its details; its seconds are the timer's
+(:func:`run_timed`). What a method needs of the comparison (a thin lens, a
+tile that divides the grid, ...) it declares (:attr:`Method.requires`,
+:mod:`sparselt.methods.preconditions`), and the harness checks it before
+anything renders. :func:`sparselt.experiments.compare.compare` runs methods
+from the registry in :mod:`sparselt.methods`; new methods (filters, guiding,
+the SFT) plug in by subclassing :class:`Method` and registering, without
+touching the harness.
 """
 
 from __future__ import annotations
@@ -17,10 +25,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import measurement
-from .options import MethodOptions, resolve_options
+from ..rendering.baseline import METHOD_SEED_LIMIT
+from .options import MethodOptions, declared_options, resolve_options
 
 TIME_PHASES = ("sampling", "reconstruction", "integration", "other")
-WARM_UP_SEED = 0xFFFF_FFFF  # never a comparison seed (those are < 2**32 - 1)
+#: The seed of every warm-up run: the first seed a comparison refuses for its runs (they are below
+#: :data:`~sparselt.rendering.baseline.METHOD_SEED_LIMIT`), so a warm-up never replays a cell's samples. It is
+#: small enough that a method's seed arithmetic on it (``seed + 7919``, ``seed ^ 0x5A5A5A5A``) stays below
+#: ``2**32``; the renderer folds any larger non-negative seed to 32 bits anyway.
+WARM_UP_SEED = METHOD_SEED_LIMIT
 
 
 @dataclass(frozen=True)
@@ -39,19 +52,20 @@ class MethodResult:
     ----------
     image : ndarray, shape (height, width, 3), float32
         Linear RGB at the comparison's output resolution.
-    seconds : dict
-        Wall seconds per phase, keys :data:`TIME_PHASES`; their sum is the
-        method's total time.
     path_samples : int
         Path samples drawn (every one counted, pilot samples included).
     details : dict
         Anything else worth recording (iterations, stop reason, ...), JSON-able.
+    seconds : dict or None
+        Wall seconds per phase, keys :data:`TIME_PHASES`; their sum is the
+        method's total time. A method leaves it out: :func:`run_timed` fills
+        it from the :class:`PhaseTimer` the method timed its phases in.
     """
 
     image: np.ndarray
-    seconds: dict
     path_samples: int
     details: dict = field(default_factory=dict)
+    seconds: dict | None = None
 
     @property
     def total_seconds(self):
@@ -60,7 +74,7 @@ class MethodResult:
 
 @dataclass
 class ComparisonContext:
-    """Everything a method needs besides its budget.
+    """Everything a method needs besides its budget (its options are its own: :attr:`Method.options`).
 
     Attributes
     ----------
@@ -76,10 +90,6 @@ class ComparisonContext:
         Output image ``(width, height)``.
     max_depth : int
         Longest path (Mitsuba's convention).
-    options : MethodOptions
-        The running method's options, typed and resolved
-        (:class:`~sparselt.methods.options.MethodOptions`): the harness gives
-        each method a context carrying its own (:meth:`with_options`).
     """
 
     scene: object
@@ -88,11 +98,6 @@ class ComparisonContext:
     grid_shape: tuple
     resolution: tuple
     max_depth: int
-    options: MethodOptions = field(default_factory=MethodOptions)
-
-    def with_options(self, options):
-        """This context carrying ``options`` (a method's resolved :class:`MethodOptions`)."""
-        return dataclasses.replace(self, options=options)
 
     @property
     def upscale(self):
@@ -108,7 +113,7 @@ class PhaseTimer(measurement.PhaseTimer):
 
 
 class Method:
-    """Base class of comparison methods.
+    """Base class of comparison methods: an estimator and its resolved options.
 
     Subclasses set :attr:`name`, :attr:`kinds` (signal kinds they support; the
     harness refuses others before anything runs), :attr:`description`, and
@@ -116,11 +121,17 @@ class Method:
 
     ``Options``
         A frozen :class:`~sparselt.methods.options.MethodOptions` dataclass
-        declaring the method's options (default: none). The harness
-        validates them before anything runs and passes the resolved object
-        as ``context.options``.
+        declaring the method's options (default: none). An instance carries
+        its resolved options as :attr:`options`.
+    ``requires``
+        What the method needs of the comparison, beyond its kinds: a tuple of
+        :class:`~sparselt.methods.preconditions.Requirement` (a thin lens, a
+        tile option that divides the grid, the scene's film resolution, a
+        least spp). The harness checks every requirement before anything
+        renders (:meth:`check_preconditions`).
     ``needs_resolution_multiple``
-        The output resolution must be a multiple of the grid's image axes.
+        The output resolution must be a multiple of the grid's image axes
+        (a requirement too).
     ``baseline``
         The method every other is compared with at equal time (``pt``; one
         registered method at most).
@@ -133,12 +144,33 @@ class Method:
     ``thesis_procedure``
         The method is a procedure of the thesis, as the thesis describes it
         (rather than a baseline or our own variant).
+
+    Parameters
+    ----------
+    options : MethodOptions or mapping, optional
+        Resolved options (an instance of :attr:`Options`), or ``{name:
+        value}`` resolved here through the one validation,
+        :func:`~sparselt.methods.options.resolve_options` (default: every
+        option at its default).
+    grid_shape : tuple of int, optional
+        The comparison's grid: needed to resolve a mapping when an option's
+        default or bound depends on the grid (``K = N / 200``).
+    label : str, optional
+        The row this instance is in a comparison (a variant's text as
+        written, ``'cosamp:gamma=0.5'``); default :attr:`name`.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Options the method refuses (the message names ``method.option`` and
+        what is allowed), or a grid-dependent option without ``grid_shape``.
     """
 
     name = ""
     kinds = ()
     description = ""
     Options = MethodOptions
+    requires = ()
     needs_resolution_multiple = False
     baseline = False
     family = "other"
@@ -146,36 +178,85 @@ class Method:
 
     warm_up_spp = 1
 
+    def __init__(self, options=None, *, grid_shape=None, label=None):
+        if not isinstance(options, self.Options):
+            given = {} if options is None else options
+            if not isinstance(given, dict):
+                raise TypeError(f"method {self.name!r} takes options as {self.Options.__name__} or a mapping of "
+                                f"option name to value, got {type(options).__name__}")
+            if grid_shape is None:
+                grid_bound = [item.name for item in declared_options(self.Options)
+                              if item.derive is not None or callable(item.maximum)]
+                if grid_bound:
+                    raise TypeError(f"method {self.name!r}: option {grid_bound[0]!r} depends on the grid; give "
+                                    "grid_shape to resolve its options")
+                grid_shape = ()
+            options = resolve_options(self.Options, given, grid_shape=tuple(grid_shape), owner=self.name)
+        self.options = options
+        self.label = self.name if label is None else str(label)
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.options!r}, label={self.label!r})"
+
     @classmethod
     def roles(cls):
         """What the reports need to know of the method: ``{baseline, family, thesis_procedure}``."""
         return {"baseline": bool(cls.baseline), "family": str(cls.family),
                 "thesis_procedure": bool(cls.thesis_procedure)}
 
-    def options_of(self, context):
-        """This method's options from ``context``: the resolved object the harness put there.
+    @classmethod
+    def requirements(cls):
+        """Every declared precondition: the kinds, the resolution multiple when needed, then :attr:`requires`."""
+        from .preconditions import ResolutionMultiple, SupportedKind
 
-        A context built by hand may carry a plain dict (or nothing): it is
-        resolved here, through the one validation of
-        :func:`~sparselt.methods.options.resolve_options`.
+        return ((SupportedKind(),) + ((ResolutionMultiple(),) if cls.needs_resolution_multiple else ())
+                + tuple(cls.requires))
+
+    def check_preconditions(self, setup):
+        """Refuse a comparison this method cannot run in, before anything renders.
+
+        Parameters
+        ----------
+        setup : MethodSetup
+            What is known of the comparison
+            (:class:`~sparselt.methods.preconditions.MethodSetup`): before the
+            scene loads, its camera may be unknown (checked again after).
 
         Raises
         ------
-        TypeError
-            The context carries another method's options object.
+        ValueError
+            The first requirement not met; the message names the method (its
+            row), what it needs and how to give it.
         """
-        options = context.options
-        if isinstance(options, self.Options):
-            return options
-        if isinstance(options, dict) or type(options) is MethodOptions:
-            given = options if isinstance(options, dict) else {}
-            return resolve_options(self.Options, given, grid_shape=context.grid_shape, owner=self.name)
-        raise TypeError(f"method {self.name!r} got options of type {type(options).__name__}, expected "
-                        f"{self.Options.__name__}")
+        for requirement in self.requirements():
+            requirement.check(self, setup)
 
     def warm_up(self, context):
         """Compile the renderer's kernels: one run at :attr:`warm_up_spp`, result discarded."""
-        self.run(context, Budget(spp=self.warm_up_spp, seed=WARM_UP_SEED))
+        self.run(context, Budget(spp=self.warm_up_spp, seed=WARM_UP_SEED), PhaseTimer())
 
-    def run(self, context, budget):  # pragma: no cover - interface
+    def run(self, context, budget, timer):  # pragma: no cover - interface
+        """Render ``context`` at ``budget``, timing every phase in ``timer``; return a :class:`MethodResult`."""
         raise NotImplementedError
+
+
+def run_timed(method, context, budget):
+    """Run ``method`` at ``budget`` with a fresh :class:`PhaseTimer`: the result carries the timer's seconds.
+
+    What the harness (and the contract) call; a method's result leaves
+    :attr:`MethodResult.seconds` out.
+
+    Raises
+    ------
+    ValueError
+        The method returned a result with its own seconds (it must time its
+        phases in the timer it was given).
+    """
+    timer = PhaseTimer()
+    result = method.run(context, budget, timer)
+    if not isinstance(result, MethodResult):
+        return result  # check_result names it
+    if result.seconds is not None:
+        raise ValueError(f"method {method.label!r} returned MethodResult(seconds=...); a method times its phases in "
+                         "the timer run(context, budget, timer) receives, and the harness takes them from it")
+    return dataclasses.replace(result, seconds=dict(timer.seconds))

@@ -3,7 +3,9 @@
 Two layers, after scikit-learn's ``check_estimator``:
 
 :func:`check_result`
-    What the harness checks of every run before it records it: a
+    What the harness checks of every run (:func:`~sparselt.methods.base.run_timed`:
+    ``run(context, budget, timer)`` with a fresh timer, whose phases are the
+    result's seconds) before it records it: a
     :class:`MethodResult` whose image has the output's shape, dtype float32
     and finite pixels, whose seconds are non-negative, finite and only of
     :data:`TIME_PHASES`, a non-negative integer of path samples and JSON-able
@@ -12,9 +14,9 @@ Two layers, after scikit-learn's ``check_estimator``:
     faster by leaving time untimed.
 :func:`check_method`
     What the contract test (``tests/test_method_contract.py``) runs over every
-    registered method: :func:`check_result`, phases that add up to the run's
-    wall time, the path samples it reports equal to those the renderer drew
-    (counted by :class:`SampleCountingScene`), the same image for the same
+    registered method: its declared preconditions (but the kind) met by the test's context,
+    :func:`check_result`, phases that add up to the run's wall time, the path samples it reports equal to those the renderer drew
+    (counted in the renderer's one launch seam, :func:`~sparselt.rendering.mitsuba.count_samples`), the same image for the same
     seed, and options that survive a JSON round trip.
 
 References
@@ -25,16 +27,16 @@ scikit-learn's ``utils.estimator_checks`` (one suite over every estimator).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import time
 
 import numpy as np
 
-from ..rendering.mitsuba_backend import GRADIENT_SHIFTS, gradient_paths
-from .base import TIME_PHASES, MethodResult
+from ..rendering.mitsuba.launch import count_samples
+from .base import TIME_PHASES, MethodResult, run_timed
 from .options import resolve_options
+from .preconditions import MethodSetup, SupportedKind
 
 #: Untimed seconds a run may leave outside its phases before :func:`check_method` calls it a breach:
 #: the harness's own bookkeeping around ``run`` (result construction, a return) stays well below.
@@ -48,6 +50,7 @@ def check_result(method, result, context, budget, *, wall_seconds=None):
     Parameters
     ----------
     method : Method
+        The instance that ran (its :attr:`~sparselt.methods.base.Method.label` names it).
     result : object
         What ``method.run`` returned.
     context : ComparisonContext
@@ -67,7 +70,7 @@ def check_result(method, result, context, budget, *, wall_seconds=None):
     ValueError
         The message names the method, the budget and what is wrong.
     """
-    where = f"method {method.name!r} at spp {budget.spp}, seed {budget.seed}"
+    where = f"method {method.label!r} at spp {budget.spp}, seed {budget.seed}"
     if not isinstance(result, MethodResult):
         raise ValueError(f"{where} returned {type(result).__name__}, not a sparselt.methods.MethodResult")
     width, height = context.resolution
@@ -104,71 +107,12 @@ def check_result(method, result, context, budget, *, wall_seconds=None):
     return seconds
 
 
-class SampleCountingScene:
-    """The renderer adapter with every path sample it draws counted (the contract's witness).
-
-    Wraps a :class:`~sparselt.rendering.mitsuba_backend.MitsubaScene`; each
-    sampling entry point adds what it draws to :attr:`path_samples` and
-    forwards the call unchanged. The ``aov`` pass draws no path samples; its
-    samples go to :attr:`aov_samples`.
-    """
-
-    def __init__(self, scene):
-        self._scene = scene
-        self.path_samples = 0
-        self.aov_samples = 0
-
-    def __getattr__(self, name):
-        return getattr(self._scene, name)
-
-    def _pixels(self):
-        return self._scene.width * self._scene.height
-
-    def sample_cells(self, layout, grid_shape, first_cell, cell_count, spp, seed, *, cells=None):
-        count = int(np.size(cells)) if cells is not None else int(cell_count)
-        self.path_samples += count * int(spp)
-        return self._scene.sample_cells(layout, grid_shape, first_cell, cell_count, spp, seed, cells=cells)
-
-    def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None,
-                      auxiliary=(), lanes=None):
-        width, height = resolution or (self._scene.width, self._scene.height)
-        count = width * height - first_pixel if pixel_count is None else pixel_count
-        self.path_samples += int(count) * int(spp) if lanes is None else int(np.size(lanes[0]))
-        return self._scene.sample_pixels(layout, grid_shape, spp, seed, first_pixel=first_pixel,
-                                         pixel_count=pixel_count, resolution=resolution, auxiliary=auxiliary,
-                                         lanes=lanes)
-
-    def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, lanes=None):
-        self.path_samples += self._pixels() * int(spp) if lanes is None else int(np.size(lanes[0]))
-        return self._scene.sample_pixel_statistics(layout, grid_shape, seed, names, spp=spp, lanes=lanes)
-
-    def sample_gradients(self, layout, grid_shape, spp, seed, *, offsets=4):
-        width, height = self._scene.width, self._scene.height
-        self.path_samples += int(spp) * gradient_paths(width, height, offsets) if offsets in GRADIENT_SHIFTS else 0
-        return self._scene.sample_gradients(layout, grid_shape, spp, seed, offsets=offsets)
-
-    def render_estimator(self, layout, spp, seed):
-        self.path_samples += self._pixels() * int(spp)
-        return self._scene.render_estimator(layout, spp, seed)
-
-    def render_guided(self, layout, map_shape, tables, densities, spp, seed, *, mode):
-        self.path_samples += self._pixels() * int(spp)
-        return self._scene.render_guided(layout, map_shape, tables, densities, spp, seed, mode=mode)
-
-    def render_path(self, spp, max_depth, seed=0):
-        self.path_samples += self._pixels() * int(spp)
-        return self._scene.render_path(spp, max_depth, seed)
-
-    def render_aovs(self, spp, seed=0):
-        self.aov_samples += self._pixels() * int(spp)
-        return self._scene.render_aovs(spp, seed)
-
-
 def check_method(method, context, budget):
     """Run ``method`` twice at ``budget`` on ``context`` and check the whole contract.
 
-    ``context.scene`` is wrapped in a :class:`SampleCountingScene` for the
-    runs; ``context.options`` should be the method's resolved options.
+    ``method`` is an instance (the estimator with its options); every path
+    sample the renderer draws in a run is counted in its one launch seam
+    (:func:`sparselt.rendering.mitsuba.count_samples`), the contract's witness.
 
     Returns
     -------
@@ -181,30 +125,36 @@ def check_method(method, context, budget):
     ------
     AssertionError
         A breach of the contract, named.
+    ValueError
+        The context does not meet one of the method's declared preconditions.
     """
-    options = method.options_of(context)
+    options = method.options
     record = json.loads(json.dumps(options.record()))
     assert resolve_options(method.Options, record, grid_shape=context.grid_shape, owner=method.name) == options, (
-        f"{method.name}: options do not survive a JSON round trip: {record}")
-    method.warm_up(context.with_options(options))
+        f"{method.label}: options do not survive a JSON round trip: {record}")
+    setup = MethodSetup.of_context(context, spps=(budget.spp,))
+    for requirement in method.requirements():  # all but the kind: the contract runs every method on one context
+        if not isinstance(requirement, SupportedKind):
+            requirement.check(method, setup)
+    method.warm_up(context)
     runs = []
     for _ in range(2):
-        counting = SampleCountingScene(context.scene)
-        start = time.perf_counter()
-        result = method.run(dataclasses.replace(context, scene=counting, options=options), budget)
-        wall = time.perf_counter() - start
+        with count_samples() as counted:
+            start = time.perf_counter()
+            result = run_timed(method, context, budget)
+            wall = time.perf_counter() - start
         seconds = check_result(method, result, context, budget)
-        runs.append((result, seconds, wall, counting.path_samples))
+        runs.append((result, seconds, wall, counted.path_samples))
     (first, seconds, wall, drawn), (second, *_) = runs
     assert first.path_samples == drawn, (
-        f"{method.name}: reports {first.path_samples} path samples, the renderer drew {drawn}")
+        f"{method.label}: reports {first.path_samples} path samples, the renderer drew {drawn}")
     timed = sum(seconds.values())
-    assert timed <= wall * 1.02 + 1e-3, f"{method.name}: phases sum to {timed:.4f} s, more than the run's {wall:.4f} s"
+    assert timed <= wall * 1.02 + 1e-3, f"{method.label}: phases sum to {timed:.4f} s, more than the run's {wall:.4f} s"
     untimed = wall - timed
     assert untimed <= max(UNTIMED_TOLERANCE_SECONDS, UNTIMED_TOLERANCE_FRACTION * wall), (
-        f"{method.name}: {untimed:.4f} s of a {wall:.4f} s run is in no phase")
-    assert np.array_equal(first.image, second.image), f"{method.name}: the same seed gave another image"
+        f"{method.label}: {untimed:.4f} s of a {wall:.4f} s run is in no phase")
+    assert np.array_equal(first.image, second.image), f"{method.label}: the same seed gave another image"
     return {"result": first, "seconds": seconds, "wall_seconds": wall, "drawn": drawn}
 
 
-__all__ = ["SampleCountingScene", "check_method", "check_result"]
+__all__ = ["check_method", "check_result"]

@@ -70,6 +70,7 @@ from ..recovery.cosamp import cosamp
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .options import MethodOptions, option
 from .pixel_samples import cell_means, draw_pixel_samples
+from .preconditions import MinimumSpp
 from .registry import register
 
 DEFAULT_GAMMA = 0.25
@@ -177,6 +178,8 @@ def chroma(pixel_rgb):
 
 
 class _CosampMethod(Method):
+    """What both CoSaMP procedures share: the samples of :func:`draw_pixel_samples`, then :meth:`image`."""
+
     kinds = ("dof", "indirect")
     family = "cosamp"
     needs_resolution_multiple = True
@@ -187,20 +190,25 @@ class _CosampMethod(Method):
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED))
         kernels.warm_up()
 
-    def run(self, context, budget):
-        options = self.options_of(context)
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
         with timer("sampling"):
             samples = draw_pixel_samples(context, budget)
-        image, details = image_from_samples(samples, context.grid_shape, gamma=options.gamma,
-                                            sparsity=options.sparsity, thesis_faithful=self.thesis_procedure,
-                                            timer=timer)
-        return MethodResult(image=image, seconds=timer.seconds, path_samples=samples.values.shape[0],
-                            details=details)
+        image, details = self.image(samples, context.grid_shape, timer)
+        return MethodResult(image=image, path_samples=samples.values.shape[0], details=details)
+
+    def image(self, samples, grid_shape, timer):  # pragma: no cover - interface
+        """The procedure's image of the samples and its details (everything after sampling)."""
+        raise NotImplementedError
 
 
-def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=False, timer=None):
-    """The CoSaMP image of a set of pixel samples: everything after sampling (thesis 8.1.1).
+def _procedure_details(samples, *, gamma, sparsity, thesis_faithful):
+    return {"gamma": gamma, "sparsity": sparsity, "thesis_faithful": bool(thesis_faithful),
+            "nonfinite_samples": samples.nonfinite}
+
+
+def thesis_image_from_samples(samples, grid_shape, *, gamma, sparsity, timer=None):
+    """The thesis's CoSaMP image of a set of pixel samples (8.1.1): the integrated reconstruction of all
+    samples times the samples' chroma.
 
     Parameters
     ----------
@@ -210,10 +218,6 @@ def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=
         Signal grid; its image axes divide the output resolution.
     gamma, sparsity : float, int
         As :func:`reconstruct_luminance`.
-    thesis_faithful : bool, optional
-        ``True``: the integrated reconstruction of all samples times the
-        samples' chroma (thesis). ``False``: the cross-fitted control variate
-        of the module docstring (needs ``spp >= 2``).
     timer : PhaseTimer, optional
         Receives the 'other', 'reconstruction' and 'integration' times.
 
@@ -221,33 +225,62 @@ def image_from_samples(samples, grid_shape, *, gamma, sparsity, thesis_faithful=
     -------
     image : ndarray, shape (height, width, 3), float32
     details : dict
-        Gamma, K, CoSaMP iterations and stop reasons, measured cells, and
-        ``control_variate_coefficient`` (beta) for the default procedure.
+        Gamma, K, CoSaMP iterations, stop reason and residual, measured cells.
 
     Raises
     ------
     ValueError
-        ``spp < 2`` for the default procedure; K not below the measured cells.
+        K not below the measured cells.
     """
     timer = timer or PhaseTimer()
-    if not thesis_faithful and samples.spp < 2:
+    width, height = samples.resolution
+    upscale = (width // grid_shape[0], height // grid_shape[1])
+    details = _procedure_details(samples, gamma=gamma, sparsity=sparsity, thesis_faithful=True)
+    with timer("other"):
+        pixel_chroma = chroma(samples.pixel_means().astype(np.float64))
+        cells, means, _ = cell_means(samples, math.prod(grid_shape), grid_shape)
+    with timer("reconstruction"):
+        reconstruction, result = reconstruct_luminance(cells, means, grid_shape, gamma=gamma, sparsity=sparsity)
+    with timer("integration"):
+        image = pixel_integral(reconstruction, upscale)[..., None] * pixel_chroma
+    details.update(measured_cells=int(cells.size), cosamp_iterations=result.iterations,
+                   cosamp_stop_reason=result.stop_reason, cosamp_relative_residual=result.relative_residual)
+    return image.astype(np.float32), details
+
+
+def image_from_samples(samples, grid_shape, *, gamma, sparsity, timer=None):
+    """The ``cosamp`` image of a set of pixel samples: the cross-fitted control variate of the module docstring.
+
+    Parameters
+    ----------
+    samples : PixelSamples
+        ``spp >= 2`` samples per output pixel with the grid cell of each.
+    grid_shape : tuple of int
+        Signal grid; its image axes divide the output resolution.
+    gamma, sparsity : float, int
+        As :func:`reconstruct_luminance`.
+    timer : PhaseTimer, optional
+        Receives the 'other', 'reconstruction' and 'integration' times.
+
+    Returns
+    -------
+    image : ndarray, shape (height, width, 3), float32
+    details : dict
+        Gamma, K, CoSaMP iterations, ``control_variate_coefficient`` (beta)
+        and each fold's record.
+
+    Raises
+    ------
+    ValueError
+        ``spp < 2``; K not below the measured cells.
+    """
+    timer = timer or PhaseTimer()
+    if samples.spp < 2:
         raise ValueError(f"cosamp splits each pixel's samples in two folds and needs spp >= 2, got {samples.spp}")
     width, height = samples.resolution
     upscale = (width // grid_shape[0], height // grid_shape[1])
     size = math.prod(grid_shape)
-    details = {"gamma": gamma, "sparsity": sparsity, "thesis_faithful": bool(thesis_faithful),
-               "nonfinite_samples": samples.nonfinite}
-    if thesis_faithful:
-        with timer("other"):
-            pixel_chroma = chroma(samples.pixel_means().astype(np.float64))
-            cells, means, _ = cell_means(samples, size, grid_shape)
-        with timer("reconstruction"):
-            reconstruction, result = reconstruct_luminance(cells, means, grid_shape, gamma=gamma, sparsity=sparsity)
-        with timer("integration"):
-            image = pixel_integral(reconstruction, upscale)[..., None] * pixel_chroma
-        details.update(measured_cells=int(cells.size), cosamp_iterations=result.iterations,
-                       cosamp_stop_reason=result.stop_reason, cosamp_relative_residual=result.relative_residual)
-        return image.astype(np.float32), details
+    details = _procedure_details(samples, gamma=gamma, sparsity=sparsity, thesis_faithful=False)
 
     def reconstruct(train):
         with timer("other"):
@@ -341,6 +374,11 @@ class Cosamp(_CosampMethod):
 
     name = "cosamp"
     description = "CoSaMP 4-D reconstruction (thesis 8.1) as a cross-fitted control variate of the pixel's samples (unbiased)"
+    requires = (MinimumSpp(2),)
+
+    def image(self, samples, grid_shape, timer):
+        options = self.options
+        return image_from_samples(samples, grid_shape, gamma=options.gamma, sparsity=options.sparsity, timer=timer)
 
 
 @register
@@ -350,3 +388,8 @@ class CosampThesis(_CosampMethod):
     name = "cosamp-thesis"
     description = "CoSaMP 4-D reconstruction exactly as thesis 8.1.1 (darker, lower contrast)"
     thesis_procedure = True
+
+    def image(self, samples, grid_shape, timer):
+        options = self.options
+        return thesis_image_from_samples(samples, grid_shape, gamma=options.gamma, sparsity=options.sparsity,
+                                         timer=timer)

@@ -30,9 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cell_statistics import variance_from_sums
 from ..filters import bilateral, cross_bilateral, gaussian, oidn_denoise
-from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
-from .cosamp_reconstruction import CosampOptions, image_from_samples
+from .base import WARM_UP_SEED, Budget, Method, MethodResult
+from .cosamp_reconstruction import CosampOptions, thesis_image_from_samples
 from .options import MethodOptions, option
 from .pixel_samples import draw_pixel_samples, sample_mean_image
 from .registry import register
@@ -95,7 +96,7 @@ def noise_sigma(samples):
     values = samples.values.reshape(height * width, samples.spp, 3)
     total = values.sum(axis=1, dtype=np.float64)
     squares = np.einsum("psc,psc->pc", values, values, dtype=np.float64)
-    variance = np.maximum(squares - total * total / samples.spp, 0.0) / (samples.spp - 1)
+    variance = variance_from_sums(total, squares, samples.spp, form="total")
     error = np.sqrt(variance.sum(axis=-1) / samples.spp)
     sigma = float(np.median(error))
     if sigma <= 0:
@@ -108,14 +109,13 @@ class _FilteredMethod(Method):
     family = "filter"
     warm_up_spp = 2  # the noise estimate needs two samples per pixel
 
-    def run(self, context, budget):
-        options = self.options_of(context)
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
+        options = self.options
         samples, image = sample_mean_image(context, budget, timer)
         filtered, details = self.filter(context, options, budget, samples, image, timer)
         details.update(nonfinite_samples=samples.nonfinite)
-        return MethodResult(image=np.asarray(filtered, dtype=np.float32), seconds=timer.seconds,
-                            path_samples=samples.values.shape[0], details=details)
+        return MethodResult(image=np.asarray(filtered, dtype=np.float32), path_samples=samples.values.shape[0],
+                            details=details)
 
     def filter(self, context, options, budget, samples, image, timer):  # pragma: no cover - interface
         raise NotImplementedError
@@ -167,8 +167,8 @@ class CosampBilateral(_FilteredMethod):
                    "itself and the CoSaMP reconstruction (thesis procedure) as range guides")
 
     def filter(self, context, options, budget, samples, image, timer):
-        reconstruction, details = image_from_samples(samples, context.grid_shape, gamma=options.gamma,
-                                                     sparsity=options.sparsity, thesis_faithful=True, timer=timer)
+        reconstruction, details = thesis_image_from_samples(samples, context.grid_shape, gamma=options.gamma,
+                                                            sparsity=options.sparsity, timer=timer)
         with timer("reconstruction"):
             sigma_range = options.range_noise_multiple * noise_sigma(samples)
             result = cross_bilateral(image, [image, reconstruction], options.radius, options.sigma_spatial,

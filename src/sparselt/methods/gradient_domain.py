@@ -7,7 +7,7 @@ from the noisy primal image and the noisy gradients by a screened Poisson
 solve. A shift that keeps the pair's paths close makes the difference's
 variance far lower than that of two independent estimates.
 
-**The shift** (:meth:`~sparselt.rendering.mitsuba_backend.MitsubaScene.sample_gradients`).
+**The shift** (:func:`~sparselt.rendering.mitsuba.gradients.sample_gradients`).
 Our sampler evaluates a path at an explicit point of primary sample space, so
 the simplest shift is a translation there: the offset path replays the base
 path's random numbers (lens, light, BSDF and lobe samples) with the film
@@ -73,9 +73,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..recovery.poisson import DEFAULT_ALPHA, screened_poisson, screened_poisson_l1
-from ..rendering.mitsuba_backend import GRADIENT_SHIFTS, gradient_paths
+from ..rendering.mitsuba.gradients import GRADIENT_SHIFTS, gradient_paths
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .options import MethodOptions, option
+from .preconditions import FilmResolution
 from .registry import register
 
 
@@ -111,9 +112,9 @@ def gradient_estimates(sums, spp):
     Parameters
     ----------
     sums : ndarray, shape (height, width, 1 + offsets, 3)
-        :meth:`~sparselt.rendering.mitsuba_backend.MitsubaScene.sample_gradients`'
+        :func:`~sparselt.rendering.mitsuba.gradients.sample_gradients`'
         sums: base paths at index 0, the offsets of
-        :data:`~sparselt.rendering.mitsuba_backend.GRADIENT_SHIFTS` after.
+        :data:`~sparselt.rendering.mitsuba.GRADIENT_SHIFTS` after.
     spp : int
         Base samples per pixel.
 
@@ -158,13 +159,13 @@ class _GradientDomain(Method):
 
     kinds = ("dof", "indirect", "path", "path-indirect")
     family = "gradient"
+    requires = (FilmResolution(),)
 
     def warm_up(self, context):
-        self.run(context, Budget(spp=2, seed=WARM_UP_SEED))
+        self.run(context, Budget(spp=2, seed=WARM_UP_SEED), PhaseTimer())
 
-    def run(self, context, budget):
-        options = self.options_of(context)
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
+        options = self.options
         width, height = context.resolution
         if (width, height) != (context.scene.width, context.scene.height):
             raise ValueError(f"{self.name} renders at the scene's film resolution {context.scene.width}x"
@@ -179,14 +180,13 @@ class _GradientDomain(Method):
             primal, gradient_x, gradient_y = gradient_estimates(sums, budget.spp)
         with timer("reconstruction"):
             result = self.reconstruct(options, primal, gradient_x, gradient_y)
-            image = result.image + gradient_estimates(emission, budget.spp)[0] if separate else result.image
+            image = result.estimate + gradient_estimates(emission, budget.spp)[0] if separate else result.estimate
         paths = budget.spp * gradient_paths(width, height, options.offsets)
         details = {"offsets": options.offsets, "alpha": options.alpha, "direct_emission": options.direct_emission,
                    "iterations": result.iterations,
                    "stop_reason": result.stop_reason, "nonfinite_samples": nonfinite,
                    "paths_per_base_sample": paths / (budget.spp * width * height)}
-        return MethodResult(image=np.asarray(image, dtype=np.float32), seconds=timer.seconds,
-                            path_samples=int(paths), details=details)
+        return MethodResult(image=np.asarray(image, dtype=np.float32), path_samples=int(paths), details=details)
 
     def reconstruct(self, options, primal, gradient_x, gradient_y):  # pragma: no cover - interface
         raise NotImplementedError

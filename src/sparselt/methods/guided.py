@@ -43,10 +43,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import kernels
+from ..cell_statistics import variance_from_sums
 from ..filters import cross_bilateral
 from ..guiding import ImportanceMap
 from ..images import luminance
-from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
+from .base import WARM_UP_SEED, Budget, Method, MethodResult
 from .cosamp_reconstruction import CosampOptions, reconstruct_luminance
 from .options import MethodOptions, option
 from .pixel_samples import cell_means, draw_pixel_samples
@@ -104,12 +105,11 @@ class _GuidedMethod(Method):
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), resolution=tuple(context.grid_shape[:2]))
         kernels.warm_up()  # the numba loops of the map's CoSaMP reconstruction
         uniform = ImportanceMap(np.ones(context.grid_shape), defensive=1.0)
-        render_with_map(context, uniform, Budget(spp=1, seed=WARM_UP_SEED), self.options_of(context).mode)
+        render_with_map(context, uniform, Budget(spp=1, seed=WARM_UP_SEED), self.options.mode)
 
-    def run(self, context, budget):
-        options = self.options_of(context)
+    def run(self, context, budget, timer):
+        options = self.options
         map_spp, defensive, mode = options.map_spp, options.defensive, options.mode
-        timer = PhaseTimer()
         with timer("sampling"):
             pilot = draw_pixel_samples(context, Budget(spp=map_spp, seed=budget.seed ^ 0x5A5A5A5A),
                                        resolution=tuple(context.grid_shape[:2]))
@@ -131,8 +131,8 @@ class _GuidedMethod(Method):
         width, height = context.resolution
         details.update(map_spp=map_spp, mode=mode, nonfinite_samples=nonfinite + pilot.nonfinite,
                        pilot_samples=int(pilot.values.shape[0]))
-        return MethodResult(image=image, seconds=timer.seconds,
-                            path_samples=int(pilot.values.shape[0]) + width * height * budget.spp, details=details)
+        return MethodResult(image=image, path_samples=int(pilot.values.shape[0]) + width * height * budget.spp,
+                            details=details)
 
     def select_defensive(self, context, options, pilot, timer):
         """The defensive weight of each image cell, chosen on the pilot's own samples (no reference).
@@ -174,7 +174,7 @@ class _GuidedMethod(Method):
                                                      minlength=image_cells)
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = sums / counts[:, None]
-            variance = np.maximum(squares - counts[:, None] * mean * mean, 0.0) / (counts[:, None] - 1)
+            variance = variance_from_sums(sums, squares, counts[:, None])
             upper = mean + SIGNIFICANCE_Z * np.sqrt(variance / counts[:, None])
         helps = (counts[:, None] >= 2) & (upper < 0)
         score = np.where(helps, mean, np.inf)
@@ -281,12 +281,11 @@ class GuidedSft(_GuidedMethod):
 
     def warm_up(self, context):
         super().warm_up(context)
-        small = dataclasses.replace(self.options_of(context), sparsity=1)
+        small = dataclasses.replace(self.options, sparsity=1)
         reconstruct(context, 1, WARM_UP_SEED, small)
 
-    def run(self, context, budget):
-        options = self.options_of(context)
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
+        options = self.options
         result = reconstruct(context, options.map_spp, budget.seed ^ 0x5A5A5A5A, options)
         timer.seconds["sampling"] += result.seconds["sampling"]
         timer.seconds["reconstruction"] += result.seconds["reconstruction"]
@@ -301,5 +300,5 @@ class GuidedSft(_GuidedMethod):
                    "sparsity": options.sparsity, "alpha": options.alpha, "snr_db": options.snr,
                    "map_samples": result.path_samples, "support_samples": result.support_samples,
                    "magnitude_samples": result.magnitude_samples, "nonfinite_samples": nonfinite + result.nonfinite}
-        return MethodResult(image=image, seconds=timer.seconds,
-                            path_samples=result.path_samples + width * height * budget.spp, details=details)
+        return MethodResult(image=image, path_samples=result.path_samples + width * height * budget.spp,
+                            details=details)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .base import Method, MethodResult, PhaseTimer
+from .base import Method, MethodResult
 from .registry import register
 
 
@@ -22,16 +22,14 @@ class PathTracing(Method):
     kinds = ("dof", "indirect", "path", "path-indirect")
     description = "path tracing: Mitsuba's path integrator (the kind's own estimator for 'indirect', 'path-indirect')"
 
-    def run(self, context, budget):
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
         if context.kind in ("indirect", "path-indirect"):
             with timer("sampling"):
                 image, nonfinite = context.scene.render_estimator(context.layout, budget.spp, budget.seed)
             details = {"integrator": f"sparselt {context.kind} estimator, one kernel", "nonfinite_samples": nonfinite}
         else:
             image, seconds = context.scene.render_path(budget.spp, context.max_depth, budget.seed)
-            timer.seconds["sampling"] = seconds
+            timer.seconds["sampling"] += seconds
             details = {"integrator": "mitsuba path"}
         width, height = context.resolution
-        return MethodResult(image=image, seconds=timer.seconds, path_samples=width * height * budget.spp,
-                            details=details)
+        return MethodResult(image=image, path_samples=width * height * budget.spp, details=details)

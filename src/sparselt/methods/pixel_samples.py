@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import kernels
+from .. import cell_statistics, kernels
 from ..images import luminance
 
 LANES_PER_LAUNCH = 1 << 22
@@ -37,7 +37,7 @@ class PixelSamples:
         Samples that were NaN or infinite (replaced by 0).
     auxiliary : dict
         Per-sample quantities drawn in the same kernel
-        (:data:`~sparselt.rendering.mitsuba_backend.AUXILIARY_QUANTITIES`), one
+        (:data:`~sparselt.rendering.mitsuba.AUXILIARY_QUANTITIES`), one
         row per sample in the order of ``values``; empty unless requested.
     """
 
@@ -82,7 +82,7 @@ def draw_pixel_samples(context, budget, *, resolution=None, auxiliary=()):
     ``resolution`` (default the comparison's output resolution) is the pixel
     grid: a pilot pass for an importance map draws per map cell instead.
     ``auxiliary`` names per-sample quantities drawn in the same kernels
-    (:data:`~sparselt.rendering.mitsuba_backend.AUXILIARY_QUANTITIES`).
+    (:data:`~sparselt.rendering.mitsuba.AUXILIARY_QUANTITIES`).
     """
     width, height = resolution or context.resolution
     pixels = width * height
@@ -121,6 +121,7 @@ def sample_mean_image(context, budget, timer):
 def cell_means(samples, size, grid_shape=None):
     """Luminance measurements of the sampled cells (thesis 8.1.1: a cell that receives samples is measured by their mean).
 
+    The mean of each cell's luminances, :func:`sparselt.cell_statistics.cell_means`.
     With the signal's ``grid_shape`` (whose image axes divide the samples'
     resolution), the sums run per image-cell block on every core
     (:func:`~sparselt.kernels.pixel_block_cell_sums`): the same numbers,
@@ -142,7 +143,4 @@ def cell_means(samples, size, grid_shape=None):
             cells, sums, counts = kernels.pixel_block_cell_sums(samples.cells, weights, samples.spp,
                                                                 samples.resolution, tuple(int(v) for v in grid_shape))
             return cells, sums / counts, counts
-    counts = np.bincount(samples.cells, minlength=size)
-    sums = np.bincount(samples.cells, weights=weights, minlength=size)
-    cells = np.flatnonzero(counts)
-    return cells, sums[cells] / counts[cells], counts[cells]
+    return cell_statistics.cell_means(samples.cells, weights, size)

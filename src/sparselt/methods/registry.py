@@ -1,4 +1,8 @@
-"""The registry of comparison methods: name -> :class:`~sparselt.methods.base.Method` instance, built-ins and plug-ins.
+"""The registry of comparison methods: name -> :class:`~sparselt.methods.base.Method` class, built-ins and plug-ins.
+
+:func:`get_method` makes an instance, the estimator with its resolved
+options, from a name or a variant (``cosamp:gamma=0.5``,
+:mod:`sparselt.methods.variants`); :func:`method_class` is the class itself.
 
 Built-in methods register when :func:`method_names` or :func:`get_method` is
 first called. Plug-ins add theirs in two ways, both through :func:`register`:
@@ -20,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import importlib.metadata
+import inspect
 import re
 
 from ..rendering.layout import KINDS
@@ -48,7 +53,9 @@ def check_method_class(cls, source=None):
     """Refuse a method class that breaks the contract of :class:`~sparselt.methods.base.Method`.
 
     Checked: a subclass of ``Method``; ``name`` matching :data:`NAME_PATTERN`;
-    ``kinds`` a non-empty tuple of signal kinds; ``run`` implemented;
+    ``kinds`` a non-empty tuple of signal kinds; ``run(self, context,
+    budget, timer)`` implemented with exactly that signature; ``requires`` a
+    tuple of :class:`~sparselt.methods.preconditions.Requirement`;
     ``Options`` a frozen :class:`MethodOptions` dataclass whose defaults are
     valid; ``baseline`` and ``thesis_procedure`` booleans; ``family`` text.
 
@@ -58,6 +65,7 @@ def check_method_class(cls, source=None):
         One line naming ``source`` (the plug-in) and what is wrong.
     """
     from .base import Method
+    from .preconditions import Requirement
 
     where = f"plug-in {source or getattr(cls, '__module__', '?')!r}"
     label = getattr(cls, "__qualname__", repr(cls))
@@ -73,7 +81,19 @@ def check_method_class(cls, source=None):
         raise PluginError(f"{where}: method {name!r} declares kinds {kinds!r}; kinds must be a non-empty tuple of "
                           f"{', '.join(KINDS)}")
     if cls.run is Method.run or not callable(cls.run):
-        raise PluginError(f"{where}: method {name!r} does not implement run(context, budget)")
+        raise PluginError(f"{where}: method {name!r} does not implement run(context, budget, timer)")
+    try:
+        parameters = list(inspect.signature(cls.run).parameters)
+    except (TypeError, ValueError):
+        parameters = None
+    if parameters is not None and parameters[1:] != ["context", "budget", "timer"]:
+        raise PluginError(f"{where}: method {name!r} defines run({', '.join(parameters)}); the signature is "
+                          "run(self, context, budget, timer): time every phase in the PhaseTimer the harness passes "
+                          "(with timer('sampling'): ...) and return MethodResult(image=..., path_samples=..., "
+                          "details=...) without seconds")
+    if not isinstance(cls.requires, tuple) or not all(isinstance(item, Requirement) for item in cls.requires):
+        raise PluginError(f"{where}: method {name!r}: requires must be a tuple of "
+                          f"sparselt.methods.preconditions.Requirement, got {cls.requires!r}")
     try:
         declared = declared_options(cls.Options)
     except TypeError as error:
@@ -96,7 +116,7 @@ def check_method_class(cls, source=None):
 
 
 def register(cls):
-    """Class decorator: check ``cls`` against the contract and register one instance under ``cls.name``.
+    """Class decorator: check ``cls`` against the contract and register it under ``cls.name``.
 
     Raises
     ------
@@ -110,16 +130,11 @@ def register(cls):
         raise PluginError(f"plug-in {source!r}: method name {cls.name!r} is already registered by "
                           f"{_SOURCES[cls.name]!r}; choose another name")
     if cls.baseline:
-        other = [name for name, method in _METHODS.items() if method.baseline]
+        other = [name for name, registered in _METHODS.items() if registered.baseline]
         if other:
             raise PluginError(f"plug-in {source!r}: method {cls.name!r} declares baseline = True, but {other[0]!r} is "
                               "the baseline already (one baseline per registry)")
-    try:
-        instance = cls()
-    except Exception as error:  # a plug-in's constructor is its own code
-        raise PluginError(f"plug-in {source!r}: method {cls.name!r} cannot be constructed without arguments: "
-                          f"{type(error).__name__}: {error}") from None
-    _METHODS[cls.name] = instance
+    _METHODS[cls.name] = cls
     _SOURCES[cls.name] = source
     return cls
 
@@ -187,8 +202,8 @@ def method_source(name):
     return _SOURCES[name]
 
 
-def get_method(name):
-    """The registered method called ``name``.
+def method_class(name):
+    """The registered :class:`~sparselt.methods.base.Method` class called ``name``.
 
     Raises
     ------
@@ -202,18 +217,50 @@ def get_method(name):
     return _METHODS[name]
 
 
+def get_method(spec, *, grid_shape=None, options=None):
+    """The estimator ``spec`` names: an instance of its method with its options resolved.
+
+    Parameters
+    ----------
+    spec : str
+        A method name (``cosamp``) or a variant (``cosamp:gamma=0.5``,
+        :func:`~sparselt.methods.variants.parse_method_variant`); the
+        instance's :attr:`~sparselt.methods.base.Method.label` is ``spec``.
+    grid_shape : tuple of int, optional
+        The comparison's grid, for options whose default or range depends on
+        it (needed when the method has such options).
+    options : mapping, optional
+        The method's options before the variant's own (``--option
+        METHOD.NAME=VALUE``); the variant's values win.
+
+    Raises
+    ------
+    ValueError
+        Unknown method (the message lists the registered ones), a malformed
+        variant, an option the method does not declare or a value it refuses.
+    TypeError
+        A grid-dependent option and no ``grid_shape``.
+    """
+    from .variants import parse_method_variant
+
+    name, given = parse_method_variant(spec)
+    merged = dict(options or {})
+    merged.update(given)
+    cls = method_class(name)
+    return cls(merged, grid_shape=grid_shape, label=spec.strip())
+
+
 def baseline_name():
     """The name of the baseline method (``pt``)."""
     _load_builtin()
-    return next(name for name, method in _METHODS.items() if method.baseline)
+    return next(name for name, cls in _METHODS.items() if cls.baseline)
 
 
 def resolve_method_options(name, given=None, *, grid_shape):
     """The resolved options of method ``name`` (see :func:`~sparselt.methods.options.resolve_options`)."""
     from .options import resolve_options
 
-    method = get_method(name)
-    return resolve_options(method.Options, given or {}, grid_shape=grid_shape, owner=name)
+    return resolve_options(method_class(name).Options, given or {}, grid_shape=grid_shape, owner=name)
 
 
 def _load_builtin():
@@ -235,4 +282,4 @@ def _load_builtin():
 
 
 __all__ = ["ENTRY_POINT_GROUP", "PluginError", "baseline_name", "check_method_class", "get_method",
-           "load_plugins", "method_names", "method_source", "register", "resolve_method_options"]
+           "load_plugins", "method_class", "method_names", "method_source", "register", "resolve_method_options"]

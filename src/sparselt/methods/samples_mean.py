@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .base import Method, MethodResult, PhaseTimer
+from .base import Method, MethodResult
 from .pixel_samples import sample_mean_image
 from .registry import register
 
@@ -16,8 +16,7 @@ class SamplesMean(Method):
     kinds = ("dof", "indirect", "path", "path-indirect")
     description = "per-pixel mean of the CoSaMP methods' samples (the same budget without reconstruction)"
 
-    def run(self, context, budget):
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
         samples, image = sample_mean_image(context, budget, timer)
-        return MethodResult(image=image, seconds=timer.seconds, path_samples=samples.values.shape[0],
+        return MethodResult(image=image, path_samples=samples.values.shape[0],
                             details={"nonfinite_samples": samples.nonfinite})

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..recovery.path_space import sft_path_space
-from .base import Method, MethodResult, PhaseTimer
+from .base import Method, MethodResult
 from .options import MethodOptions, option
 from .registry import register
 
@@ -46,14 +46,13 @@ class SftOptions(MethodOptions):
                         help="signal-to-noise ratio in dB the SFT assumes (sets its hash and repetition counts)")
 
 
-def reconstruct(context, spp, seed, options=None):
+def reconstruct(context, spp, seed, options):
     """The SFT reconstruction of the context's grid at ``spp`` path samples per lattice point.
 
-    ``options`` (default ``context.options``) has ``sparsity``, ``alpha`` and
-    ``snr`` (an :class:`SftOptions` or one derived from it).
+    ``options`` has ``sparsity``, ``alpha`` and ``snr`` (an :class:`SftOptions`
+    or one derived from it).
     """
     grid = tuple(context.grid_shape)
-    options = context.options if options is None else options
 
     def evaluate(cells):
         return context.scene.sample_cells(context.layout, grid, 0, 0, spp, seed, cells=cells)
@@ -75,19 +74,17 @@ class SparseFourierMethod(Method):
                    "--spp = path samples per lattice point, K = N/10^4 by default")
     needs_resolution_multiple = True
 
-    def run(self, context, budget):
-        options = self.options_of(context)
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
+        options = self.options
         result = reconstruct(context, budget.spp, budget.seed, options)
-        timer.seconds["sampling"] = result.seconds["sampling"]
-        timer.seconds["reconstruction"] = result.seconds["reconstruction"]
+        timer.seconds["sampling"] += result.seconds["sampling"]
+        timer.seconds["reconstruction"] += result.seconds["reconstruction"]
         with timer("integration"):
             image = result.image()
             image = np.repeat(np.repeat(image, context.upscale[1], axis=0), context.upscale[0], axis=1)
         width, height = context.grid_shape[:2]
         return MethodResult(
-            image=np.ascontiguousarray(image, dtype=np.float32), seconds=timer.seconds,
-            path_samples=result.path_samples,
+            image=np.ascontiguousarray(image, dtype=np.float32), path_samples=result.path_samples,
             details={"support_samples": result.support_samples, "magnitude_samples": result.magnitude_samples,
                      "lattice_points": result.cells, "samples_per_point": budget.spp,
                      "samples_per_pixel": result.path_samples / (width * height), "sparsity": options.sparsity,

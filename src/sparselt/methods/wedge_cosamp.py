@@ -114,11 +114,11 @@ import numpy as np
 from .. import kernels
 from ..filters.axis_aligned import circle_of_confusion, depth_range
 from ..fourier import fft
-from ..images import luminance
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .cosamp_reconstruction import CosampOptions, cross_fitted_image, default_sparsity, reconstruct_luminance
 from .options import option
-from .pixel_samples import draw_pixel_samples
+from .pixel_samples import cell_means, draw_pixel_samples
+from .preconditions import MinimumSpp, ThinLens, TileDividesGrid
 from .registry import register
 
 #: Default tiles are the largest common divisor of the image axes up to this (25 for 250x250).
@@ -273,9 +273,9 @@ def tile_circles_of_confusion(samples, lens, grid_shape, tile):
 def tile_cell_means(samples, grid_shape, tile):
     """Luminance measurements of the sampled cells, grouped by tile.
 
-    As :func:`~sparselt.methods.pixel_samples.cell_means` (a cell is
-    measured by the mean luminance of its samples), in tile order, by one
-    sort of the samples rather than counts over the whole grid.
+    :func:`~sparselt.methods.pixel_samples.cell_means` (a cell is measured
+    by the mean luminance of its samples), its measured cells put in tile
+    order by one sort.
 
     Returns
     -------
@@ -291,15 +291,15 @@ def tile_cell_means(samples, grid_shape, tile):
     width, height = grid_shape[:2]
     lens_cells = math.prod(grid_shape[2:])
     tile_size = tile * tile * lens_cells
-    x, rest = np.divmod(samples.cells, height * lens_cells)
+    cells, means, _ = cell_means(samples, math.prod(grid_shape), grid_shape)
+    x, rest = np.divmod(cells, height * lens_cells)
     y, lens_cell = np.divmod(rest, lens_cells)
     tiles_y = height // tile
     key = ((x // tile) * tiles_y + y // tile) * tile_size + ((x % tile) * tile + y % tile) * lens_cells + lens_cell
-    cells, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    sums = np.bincount(inverse, weights=luminance(samples.values), minlength=cells.size)
-    tile_of, local = np.divmod(cells, tile_size)
+    order = np.argsort(key)  # distinct keys: one per measured cell
+    tile_of, local = np.divmod(key[order], tile_size)
     bounds = np.searchsorted(tile_of, np.arange((width // tile) * tiles_y + 1))
-    return local, sums / counts, bounds
+    return local, means[order], bounds
 
 
 def _solve_tile(local, means, tile_shape, circle_of_confusion_range, *, gamma, sparsity, margin):
@@ -432,15 +432,15 @@ class WedgeCosamp(Method):
     family = "cosamp"
     needs_resolution_multiple = True
     Options = WedgeCosampOptions
+    requires = (ThinLens(), TileDividesGrid("tile"), MinimumSpp(2))
 
     def warm_up(self, context):
         check_lens(context)
         draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), auxiliary=(DEPTH,))
         kernels.warm_up()  # the numba loops around CoSaMP's FFTs
 
-    def run(self, context, budget):
-        options = self.options_of(context)
-        timer = PhaseTimer()
+    def run(self, context, budget, timer):
+        options = self.options
         with timer("other"):
             lens = check_lens(context)
             check_tiling(context.grid_shape, options.tile)
@@ -452,5 +452,5 @@ class WedgeCosamp(Method):
         image, details = wedge_image_from_samples(samples, context.grid_shape, lens, gamma=options.gamma,
                                                   sparsity=options.sparsity, tile=options.tile,
                                                   margin=options.margin, timer=timer)
-        return MethodResult(image=image, seconds=timer.seconds, path_samples=samples.values.shape[0],
+        return MethodResult(image=image, path_samples=samples.values.shape[0],
                             details=details)

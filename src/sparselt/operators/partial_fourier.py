@@ -39,6 +39,7 @@ from ..fourier import fft
 from ..fourier.hermitian import partner_indices
 from ..fourier.sparse import SparseFourier, check_shape
 from .. import kernels
+from ..cell_statistics import cell_means
 from .base import LinearOperator
 
 DTYPES = {np.dtype(np.float32): np.dtype(np.complex64), np.dtype(np.float64): np.dtype(np.complex128)}
@@ -46,6 +47,9 @@ DTYPES = {np.dtype(np.float32): np.dtype(np.complex64), np.dtype(np.float64): np
 
 def mean_per_cell(cells, values):
     """Collapse repeated measurements: each distinct cell once, with the mean of its samples.
+
+    :func:`sparselt.cell_statistics.cell_means` over the distinct cells,
+    checked at this public boundary and returned in the values' dtype.
 
     Parameters
     ----------
@@ -78,10 +82,8 @@ def mean_per_cell(cells, values):
         raise ValueError(f"cells and values must have one entry per sample, got shapes {cells.shape} and {values.shape}")
     if cells.size and cells.min() < 0:
         raise ValueError(f"cells must be flat cell indices >= 0, got {int(cells.min())}")
-    unique_cells, inverse, counts = np.unique(cells, return_inverse=True, return_counts=True)
-    sums = np.zeros(unique_cells.size, dtype=np.result_type(values.dtype, np.float64))
-    np.add.at(sums, inverse, values)
-    return unique_cells, (sums / counts).astype(values.dtype if np.issubdtype(values.dtype, np.inexact) else np.float64), counts
+    unique_cells, means, counts = cell_means(cells, values)
+    return unique_cells, means.astype(values.dtype if np.issubdtype(values.dtype, np.inexact) else np.float64), counts
 
 
 @functools.lru_cache(maxsize=8)

@@ -380,7 +380,7 @@ def _result(operator, support, values, history, iterations, clock, stop_reason, 
         residual_history=tuple(history),
         iterations=iterations,
         samples=operator.output_size,
-        time=dict(clock.seconds),
+        seconds=dict(clock.seconds),
         stop_reason=stop_reason,
         transforms=operator.transforms - transforms_before,
     )

@@ -153,6 +153,6 @@ def sft_lattice(function, shape, sparsity, *, lowest=None, **options):
     parameters = dict(result.parameters, shape=shape, lowest=lowest)
     return SparseFourierTransformResult(
         estimate=grid, residual_history=result.residual_history, iterations=result.iterations,
-        samples=result.samples, time=result.time, stop_reason=result.stop_reason, transforms=result.transforms,
+        samples=result.samples, seconds=result.seconds, stop_reason=result.stop_reason, transforms=result.transforms,
         support_samples=result.support_samples, magnitude_samples=result.magnitude_samples, bins=result.bins,
         parameters=parameters)

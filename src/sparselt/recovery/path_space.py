@@ -31,13 +31,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..checks import check_integer, check_positive_finite
 from ..fourier import fft
 from .sample_cache import IndexedValues
+from .result import RecoveryResult
 from .sft import sft
 
 DEFAULT_BATCH_SAMPLES = 1 << 22  # path samples per renderer launch
@@ -145,17 +146,20 @@ class _ChannelOracle:
         return self.parent.read(indices)[:, self.channel]
 
 
-@dataclass
-class PathSpaceReconstruction:
-    """The SFT of a rendered signal, per RGB channel, and what it cost.
+@dataclass(frozen=True)
+class PathSpaceReconstruction(RecoveryResult):
+    """The SFT of a rendered signal, per RGB channel, and what it cost: a
+    :class:`~sparselt.recovery.result.RecoveryResult` whose ``estimate`` is the
+    spectra, ``samples`` the path samples drawn, ``iterations`` the detection
+    hashes over the channels, ``stop_reason`` the channels' (comma-separated).
 
     Attributes
     ----------
     shape : tuple of int
         The signal grid.
-    spectra : list of SparseFourier
+    spectra : tuple of SparseFourier
         Per channel, the recovered spectrum of the C-order flattened cell-mean
-        signal, shape ``(N,)``, ``numpy.fft.fft`` convention.
+        signal, shape ``(N,)``, ``numpy.fft.fft`` convention (the ``estimate``).
     results : list of SparseFourierTransformResult
         The SFT record of each channel.
     path_samples, support_samples, magnitude_samples : int
@@ -169,16 +173,19 @@ class PathSpaceReconstruction:
         ``sampling`` (rendering the cells) and ``reconstruction`` (the SFT's own work).
     """
 
-    shape: tuple
-    spectra: list
-    results: list
-    path_samples: int
-    support_samples: int
-    magnitude_samples: int
-    cells: int
-    spp: int
-    seconds: dict = field(default_factory=dict)
+    shape: tuple = ()
+    results: tuple = ()
+    path_samples: int = 0
+    support_samples: int = 0
+    magnitude_samples: int = 0
+    cells: int = 0
+    spp: int = 0
     nonfinite: int = 0
+
+    @property
+    def spectra(self):
+        """The recovered spectrum of each channel (the record's ``estimate``)."""
+        return self.estimate
 
     def image(self):
         """The pixel values, ``(height, width, 3)`` float32 (see :func:`lattice_image`)."""
@@ -284,7 +291,9 @@ def sft_path_space(evaluate, shape, sparsity, spp, *, alpha=4.0, snr=10.0, seed=
     total = time.perf_counter() - start
     by_phase = oracle.samples_by_phase()
     return PathSpaceReconstruction(
-        shape=shape, spectra=spectra, results=results, path_samples=oracle.path_samples,
+        estimate=tuple(spectra), iterations=sum(result.iterations for result in results),
+        samples=oracle.path_samples, stop_reason=",".join(result.stop_reason for result in results),
+        shape=shape, results=tuple(results), path_samples=oracle.path_samples,
         support_samples=by_phase["support"], magnitude_samples=by_phase["magnitude"], cells=oracle.cells, spp=spp,
         seconds={"sampling": oracle.seconds, "reconstruction": max(0.0, total - oracle.seconds)},
         nonfinite=oracle.nonfinite)

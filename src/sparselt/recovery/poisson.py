@@ -36,33 +36,13 @@ screened Poisson equation for gradient domain problems. ECCV.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
 
 import numpy as np
 
+from .result import RecoveryResult
+
 DEFAULT_ALPHA = 0.2  # Kettunen et al. (2015)
-
-
-@dataclass(frozen=True)
-class PoissonResult:
-    """A gradient-domain reconstruction and what it took.
-
-    Attributes
-    ----------
-    image : ndarray
-        The reconstruction, shaped like the primal.
-    iterations : int
-        ADMM iterations (0 for the direct L2 solve).
-    stop_reason : str
-        ``'exact'`` (L2), ``'converged'`` or ``'max_iterations'``.
-    change_history : tuple of float
-        Per iteration, the image's relative change ``||I_k - I_(k-1)|| / ||I_k||`` (L1 only).
-    """
-
-    image: np.ndarray
-    iterations: int
-    stop_reason: str
-    change_history: tuple = ()
 
 
 def _check(primal, gradient_x, gradient_y, alpha):
@@ -129,10 +109,12 @@ def screened_poisson(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA):
         Shapes that do not fit together, non-finite input, alpha not positive.
     """
     primal, gradient_x, gradient_y = _check(primal, gradient_x, gradient_y, alpha)
+    start = time.perf_counter()
     height, width = primal.shape[:2]
     right = alpha * alpha * primal + difference_adjoint(gradient_x, gradient_y)
     image = _solve(right, alpha * alpha, _laplacian_eigenvalues(height, width, primal.shape[2:]))
-    return PoissonResult(image=image, iterations=0, stop_reason="exact")
+    return RecoveryResult(estimate=image, iterations=0, stop_reason="exact",
+                          seconds={"solve": time.perf_counter() - start})
 
 
 def _soft(value, threshold):
@@ -152,7 +134,7 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
     tolerance : float
         Stop when an iteration moves the image by less than ``tolerance``
         times its norm, ``||I_k - I_(k-1)|| < tolerance ||I_k||`` (the
-        history of this ratio is the result's ``change_history``).
+        history of this ratio is the result's ``residual_history``).
     max_iterations : int
         Stop after this many iterations in any case.
     start : {'primal', 'l2'}
@@ -164,9 +146,12 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
 
     Returns
     -------
-    PoissonResult
+    RecoveryResult
+        ``estimate`` the image; ``residual_history`` the image's relative
+        change per iteration; ``seconds`` of the whole solve.
     """
     primal, gradient_x, gradient_y = _check(primal, gradient_x, gradient_y, alpha)
+    clock = time.perf_counter()
     if not (np.isfinite(penalty) and penalty > 0):
         raise ValueError(f"penalty must be a positive finite number, got {penalty!r}")
     if not (np.isfinite(tolerance) and tolerance > 0):
@@ -185,7 +170,7 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
         differences = forward_differences(image)
         return (alpha * image,) + differences
 
-    image = primal.copy() if start == "primal" else screened_poisson(primal, gradient_x, gradient_y, alpha=alpha).image
+    image = primal.copy() if start == "primal" else screened_poisson(primal, gradient_x, gradient_y, alpha=alpha).estimate
     residual = [h - b for h, b in zip(apply(image), targets)]
     z = [_soft(r, 1.0 / penalty) for r in residual]
     u = [r - zz for r, zz in zip(residual, z)]
@@ -204,4 +189,5 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
         if history[-1] < tolerance:
             stop = "converged"
             break
-    return PoissonResult(image=image, iterations=iterations, stop_reason=stop, change_history=tuple(history))
+    return RecoveryResult(estimate=image, residual_history=tuple(history), iterations=iterations, stop_reason=stop,
+                          seconds={"solve": time.perf_counter() - clock})

@@ -1,4 +1,5 @@
-"""The result record every recovery algorithm returns."""
+"""The result record every recovery algorithm returns: CoSaMP, the SFT, the screened Poisson solves and the SFT of
+a rendered signal (path space), one frozen dataclass with the seconds of each phase."""
 
 from __future__ import annotations
 
@@ -15,27 +16,31 @@ class RecoveryResult:
 
     Attributes
     ----------
-    estimate : SparseFourier
-        The recovered coefficients (``estimate.to_signal()`` is the grid signal).
+    estimate : SparseFourier, ndarray or tuple
+        What was recovered: the coefficients for CoSaMP and the SFT
+        (``estimate.to_signal()`` is the grid signal), the image for the
+        Poisson solves, one spectrum per RGB channel for the path-space SFT.
     residual_history : tuple of float
-        Relative residual ``||y - A x|| / ||y||`` after each iteration.
+        Relative residual ``||y - A x|| / ||y||`` after each iteration (the
+        L1 Poisson solve: the image's relative change per iteration).
     iterations : int
         Iterations run.
     samples : int
         Samples (measurements) the algorithm read.
-    time : dict
-        Seconds per phase (e.g. proxy, select, least_squares, prune, residual).
+    seconds : dict
+        Wall seconds per phase (e.g. proxy, select, least_squares, prune, residual).
     stop_reason : str
-        'converged', 'stagnated', 'max_iterations' or 'sparsity_reached'.
+        'converged', 'stagnated', 'max_iterations', 'sparsity_reached' or
+        'exact' (a direct solve).
     transforms : int
         Number of full FFTs performed (the cost floor of matrix-free recovery).
     """
 
     estimate: SparseFourier
-    residual_history: tuple
-    iterations: int
-    samples: int
-    time: dict = field(default_factory=dict)
+    residual_history: tuple = ()
+    iterations: int = 0
+    samples: int = 0
+    seconds: dict = field(default_factory=dict)
     stop_reason: str = ""
     transforms: int = 0
 
@@ -45,8 +50,8 @@ class RecoveryResult:
         return self.estimate.indices
 
     @property
-    def total_time(self):
-        return float(sum(self.time.values()))
+    def total_seconds(self):
+        return float(sum(self.seconds.values()))
 
     @property
     def relative_residual(self):

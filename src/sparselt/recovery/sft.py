@@ -169,7 +169,7 @@ class SparseFourierTransformResult(RecoveryResult):
         Detection hashes (rounds of Algorithm 6).
     samples : int
         Distinct samples read (``support_samples + magnitude_samples``).
-    time : dict
+    seconds : dict
         Seconds per phase: ``setup`` (filters), ``support`` and ``magnitude``
         (computation) and ``oracle`` (inside the oracle). They add up to the
         total.
@@ -467,7 +467,7 @@ def sft(oracle, n, sparsity, *, alpha=4.0, snr=np.inf, window="chebyshev", width
         shape ``(n,)`` in the ``numpy.fft.fft`` convention (``to_signal()``
         approximates the signal); ``.samples`` (distinct samples read, at
         most ``n``), ``.support_samples``, ``.magnitude_samples``,
-        ``.iterations``, ``.time`` per phase, ``.stop_reason``, ``.bins``.
+        ``.iterations``, ``.seconds`` per phase, ``.stop_reason``, ``.bins``.
 
     Raises
     ------
@@ -620,7 +620,7 @@ class SparseFourierTransform:
         times["oracle"] = self.cache.oracle_time
         return SparseFourierTransformResult(
             estimate=estimate, residual_history=tuple(self.history), iterations=self.iterations,
-            samples=self.cache.count, time=times, stop_reason=reason, transforms=transforms,
+            samples=self.cache.count, seconds=times, stop_reason=reason, transforms=transforms,
             support_samples=self.cache.counts["support"], magnitude_samples=self.cache.counts["magnitude"],
             bins=tuple(h.filter.bins for h in self.hashes), parameters=self.parameters)
 

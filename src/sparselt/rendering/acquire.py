@@ -41,12 +41,11 @@ from ..signal import Signal, load_signal
 from ..storage import zarr_store
 from ..storage.lock import LOCK_FILE, StoreLock, check_unlocked
 from ..storage.zarr_store import FORMAT, FORMAT_VERSION, ChunkGrid, ChunkJournal
-from .identity import describe_scene_change, scene_identity
-from .layout import KINDS, path_layout
-from .scenes import SCENES, SceneSpec, get_scene
+from .identity import describe_scene_change
+from .scenes import SCENES, SceneSpec
+from .setup import DEFAULT_MAX_DEPTH, SceneSetup
 
 DEFAULT_SPP = 64
-DEFAULT_MAX_DEPTH = 3
 LANES_PER_CHUNK = 1 << 22
 MAXIMUM_SPP = 1 << 16
 LANES_PER_LAUNCH = 1 << 32  # Dr.Jit's 32-bit lane indices: cells x spp of one launch stay below
@@ -114,6 +113,12 @@ class AcquisitionConfig:
     nonfinite: str = "error"
     scene_parameters: tuple = ()
 
+    def setup(self, scene_spec=None):
+        """The :class:`~sparselt.rendering.setup.SceneSetup` of the signal (``scene_spec``: a programmatic scene)."""
+        return SceneSetup(scene=self.scene, kind=self.kind, shape=self.shape, max_depth=self.max_depth,
+                          parameters=self.scene_parameters, aperture=self.aperture,
+                          focus_distance=self.focus_distance, variant=self.variant, scene_spec=scene_spec)
+
     def record(self):
         record = dataclasses.asdict(self)
         record["shape"] = list(self.shape)
@@ -129,20 +134,11 @@ def validate_config(config, chunk_cells=None):
     ValueError
         The first problem found, naming the bad value and what is allowed.
     """
-    if config.kind not in KINDS:
-        raise ValueError(f"unknown signal kind {config.kind!r}; choose one of {', '.join(KINDS)}")
+    config.setup().check_values()  # kind, depth, variant, shape: the scene setup's one check
     check_integer("spp", config.spp, 1, MAXIMUM_SPP - 1)
     check_integer("seed", config.seed, 0, 2**32 - 1)
-    check_integer("max_depth", config.max_depth, 1)
     if config.nonfinite not in NONFINITE_POLICIES:
         raise ValueError(f"nonfinite must be one of {NONFINITE_POLICIES}, got {config.nonfinite!r}")
-    if len(config.shape) < 2:
-        raise ValueError(f"shape {tuple(config.shape)} needs at least the two image-plane axes")
-    for size in config.shape:
-        check_integer("every axis resolution", size, 1)
-    cells = math.prod(config.shape)
-    if cells >= 2**32:
-        raise ValueError(f"shape {tuple(config.shape)} has {cells} cells; at most 2**32 - 1 are supported")
     if len(config.shape) > MAXIMUM_AXES:
         raise ValueError(f"shape has {len(config.shape)} axes; at most {MAXIMUM_AXES} are supported "
                          f"(a path signal of max depth {config.max_depth} needs more: use max depth <= 16)")
@@ -158,11 +154,6 @@ def _check_shape_matches(config, layout):
     if len(layout.axes) > MAXIMUM_AXES:
         raise ValueError(f"kind {config.kind!r} at max depth {config.max_depth} has {len(layout.axes)} axes; at most "
                          f"{MAXIMUM_AXES} are supported (use max depth <= 16)")
-    if len(config.shape) != len(layout.axes):
-        raise ValueError(
-            f"shape {tuple(config.shape)} has {len(config.shape)} axes but kind {config.kind!r} at max depth "
-            f"{config.max_depth} has {len(layout.axes)}: {', '.join(layout.axes)}"
-        )
 
 
 def signal_bytes(shape):
@@ -197,18 +188,11 @@ def _scene_key(job):
 
 def _worker_scene(job):
     """The scene and layout of a job, built once per process."""
-    from . import mitsuba_backend
-
     key = _scene_key(job)
     if key not in _WORKER_SCENES:
-        config = job.config
-        spec = get_scene(job.scene) if isinstance(job.scene, str) else job.scene
-        spec = spec.with_parameters(config.scene_parameters).with_lens(config.aperture, config.focus_distance)
-        scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
-        layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens,
-                             hide_emitters=spec.hide_emitters)
+        loaded = job.config.setup(None if isinstance(job.scene, str) else job.scene).load()
         _WORKER_SCENES.clear()  # one scene per worker process at a time
-        _WORKER_SCENES[key] = (scene, layout)
+        _WORKER_SCENES[key] = (loaded.scene, loaded.layout)
     return _WORKER_SCENES[key]
 
 
@@ -230,11 +214,11 @@ def sample_chunk(job):
         The store's device is full.
     """
     from ..distributed import worker_thread_share
-    from . import mitsuba_backend
+    from .mitsuba import set_thread_count
 
     threads = worker_thread_share(job.concurrency)
     if threads is not None:
-        mitsuba_backend.set_thread_count(threads)
+        set_thread_count(threads)
     config = job.config
     scene, layout = _worker_scene(job)
     first, count, _ = job.grid.chunk(job.index)
@@ -322,7 +306,6 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         The disk filled during the run; finished chunks are kept and the run
         resumes once space is freed.
     """
-    from . import mitsuba_backend
 
     validate_config(config, chunk_cells)
     distributed = workers is not None or scheduler is not None
@@ -334,16 +317,13 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         check_worker_count(workers)  # before any cluster starts: more processes than cores would only hang
     if distributed and path is None:
         raise ValueError("a distributed acquisition writes into a store: give an output path")
-    spec = scene_spec if scene_spec is not None else get_scene(config.scene)
-    if not isinstance(spec, SceneSpec):
-        raise TypeError(f"scene_spec must be a SceneSpec, got {type(spec).__name__}")
-    source = config.scene if scene_spec is None and config.scene in SCENES else spec
-    spec = spec.with_parameters(config.scene_parameters).with_lens(config.aperture, config.focus_distance)
+    if scene_spec is not None and not isinstance(scene_spec, SceneSpec):
+        raise TypeError(f"scene_spec must be a SceneSpec, got {type(scene_spec).__name__}")
+    setup = config.setup(scene_spec)
+    source = config.scene if scene_spec is None and config.scene in SCENES else setup.spec
     # Cheap checks first; the layout of a scene file needs its camera, hence the renderer (checked below).
-    if spec.camera is not None:
-        layout = path_layout(config.kind, config.max_depth, thin_lens=spec.resolved_camera().thin_lens,
-                             hide_emitters=spec.hide_emitters)
-        _check_shape_matches(config, layout)
+    _check_shape_matches(config, setup.validate().layout(thin_lens=True))
+    spec = setup.spec
     grid = _chunking(config, chunk_cells, parallelism=None)
     nbytes = signal_bytes(config.shape)
     if path is None:
@@ -359,16 +339,14 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
             raise ValueError(f"output {os.fspath(path)!r}: only file-system paths are supported (a shared one for a "
                              "cluster); fsspec URLs are not, because the store's lock and journal need a file system")
         path = os.path.abspath(os.fspath(path))
-        identity = scene_identity(spec)
+        identity = setup.scene_identity
         check_unlocked(path)
         plan = _inspect_store(path, config, identity, overwrite=overwrite)
         _check_disk_space(path, grid if plan not in ("resume", "repair") else None)  # again with the cluster's chunking
 
     # Loading the scene checks the file (syntax, sensor, references) before anything is written or removed.
-    scene = mitsuba_backend.MitsubaScene(spec, config.shape[:2], variant=config.variant)
-    layout = path_layout(config.kind, config.max_depth, thin_lens=scene.camera.thin_lens,
-                         hide_emitters=spec.hide_emitters)
-    _check_shape_matches(config, layout)
+    loaded = setup.load()
+    scene, layout = loaded.scene, loaded.layout
     job = ChunkJob(config=config, scene=source, grid=grid, index=0)
     _WORKER_SCENES.clear()
     _WORKER_SCENES[_scene_key(job)] = (scene, layout)

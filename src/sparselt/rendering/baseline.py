@@ -1,12 +1,11 @@
 """Plain path tracing with Mitsuba's own ``path`` integrator: the equal-time baseline.
 
-Every later equal-time comparison renders its baseline with :func:`render_reference`.
+Every equal-time comparison measures against :func:`cached_reference`; ``sparselt render`` is :mod:`sparselt.experiments.render`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import io
 import json
 import os
@@ -16,10 +15,10 @@ import numpy as np
 
 from ..measurement import progress_bar
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
+from ..cell_statistics import variance_from_sums
 from ..checks import check_integer
-from ..storage.folder import ExperimentFolder
+from ..digest import bytes_digest, digest
 from .identity import scene_identity
-from .scenes import get_scene
 
 
 MAXIMUM_WAVEFRONT = 2**32 - 1
@@ -41,79 +40,6 @@ def check_finite_image(image, name):
     if bad:
         raise ValueError(f"the render of {name!r} has {bad} NaN or infinite pixel values; nothing was written. "
                          "The scene (an emitter of huge radiance, a degenerate mesh) produces them")
-
-
-def render_reference(scene, out, *, spp, max_depth=3, seed=0, resolution=None, aperture=None,
-                     focus_distance=None, variant="llvm_ad_rgb", scene_spec=None, overwrite=False, parameters=()):
-    """Render ``scene`` and write ``image.exr``, ``image.png`` and ``render.json`` into ``out``.
-
-    Parameters
-    ----------
-    scene : str
-        Built-in scene name or Mitsuba XML path.
-    out : str
-        Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`:
-        the same render again rewrites it; another render there is refused
-        unless ``overwrite``; foreign files are always refused). Nothing is
-        written until the image is rendered, and then atomically.
-    spp : int
-        Samples per pixel (> 0).
-    max_depth : int, optional
-        Longest path, Mitsuba's convention (default 3).
-    seed : int, optional
-        Sampler seed.
-    resolution : tuple of int, optional
-        ``(width, height)``; default the scene's default resolution.
-    aperture, focus_distance : float, optional
-        Thin-lens override of the camera. An aperture alone focuses where the
-        camera's central ray hits the scene; ``render.json`` records the
-        focus distance used.
-    parameters : sequence of (str, str), optional
-        Values of the XML file's ``$name`` parameters (``-D name=value``).
-
-    Returns
-    -------
-    image : ndarray, shape (height, width, 3)
-    record : dict
-        What ``render.json`` holds, including ``seconds`` (wall time of the
-        render alone, after Dr.Jit synchronisation) and samples per second.
-    """
-    from . import mitsuba_backend
-
-    check_integer("spp", spp, 1)
-    check_integer("max_depth", max_depth, 1)
-    check_integer("seed", seed, 0, 2**32 - 1)
-    spec = (scene_spec or get_scene(scene)).with_parameters(parameters).with_lens(aperture, focus_distance)
-    resolution = tuple(resolution or spec.default_resolution)
-    for size in resolution:
-        check_integer("resolution", size, 1)
-    check_wavefront(resolution, spp)
-    folder = ExperimentFolder(out, kind="render", scene=scene_identity(spec), overwrite=overwrite, identity={
-        "spp": spp, "max_depth": max_depth, "seed": seed, "resolution": list(resolution), "variant": variant})
-    folder.inspect()  # refusals before the scene loads
-    loaded = mitsuba_backend.MitsubaScene(spec, resolution, variant=variant)
-    image, seconds = loaded.render_path(spp, max_depth, seed)
-    check_finite_image(image, spec.name)
-    record = {
-        "scene": spec.name,
-        "integrator": "path",
-        "spp": spp,
-        "max_depth": max_depth,
-        "seed": seed,
-        "resolution": list(resolution),
-        "aperture": loaded.camera.aperture_radius,
-        "focus_distance": loaded.camera.focus_distance,
-        "variant": variant,
-        "seconds": seconds,
-        "samples_per_second": resolution[0] * resolution[1] * spp / seconds,
-        "provenance": environment_record(),
-    }
-    with folder.open():
-        folder.write_exr("image.exr", image)
-        folder.write_png("image.png", image)
-        folder.write_json("render.json", record)
-        folder.complete()
-    return image, record
 
 
 REFERENCE_PASS_SPP = 64
@@ -203,7 +129,8 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     and an unreadable or garbled one is rendered again and replaced, with a
     note on standard error.
     """
-    from . import mitsuba_backend
+    from ..image_io import write_exr
+    from .mitsuba import versions
 
     check_integer("reference spp", spp, 1, REFERENCE_PASS_SPP * REFERENCE_MAX_PASSES)
     check_integer("reference seed", seed, 0, REFERENCE_SEED_LIMIT - 1)
@@ -221,11 +148,11 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
         "pass_spp": REFERENCE_PASS_SPP,
         "pass_seeds": "reference_pass_seed",  # not the earlier seed * 65536 + i, which PT's cells could replay
         "per_pass_variance": True,
-        "versions": mitsuba_backend.versions(),
+        "versions": versions(),
     }
     key = json.loads(json.dumps(key))  # as read back from reference.json (tuples become lists)
-    digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
-    folder = os.path.join(cache_directory or reference_cache_directory(), digest)
+    key_digest = digest(key)
+    folder = os.path.join(cache_directory or reference_cache_directory(), key_digest)
     image_path, record_path = os.path.join(folder, "image.npy"), os.path.join(folder, "reference.json")
     variance_path = os.path.join(folder, "variance.npy")
     if os.path.isfile(record_path) and os.path.isfile(image_path) and os.path.isfile(variance_path):
@@ -266,8 +193,7 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     # The variance of the reference's mean per pixel and channel, from the spread of its passes: the per-sample
     # variance estimated as sum_i m_i (x_i - mean)^2 / (passes - 1), divided by spp. NaN with a single pass.
     if len(passes) > 1:
-        mean = total / spp
-        variance = (np.maximum(squares - spp * mean * mean, 0.0) / (len(passes) - 1) / spp).astype(np.float32)
+        variance = (variance_from_sums(total, squares, spp, denominator=len(passes) - 1) / spp).astype(np.float32)
     else:
         variance = np.full(image.shape, np.nan, dtype=np.float32)
     if not np.all(np.isfinite(image)):
@@ -278,12 +204,12 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     buffer = io.BytesIO()
     np.save(buffer, image)
     atomic_write_bytes(image_path, buffer.getvalue())
-    mitsuba_backend.write_exr(os.path.join(folder, "image.exr"), image)
+    write_exr(os.path.join(folder, "image.exr"), image)
     variance_buffer = io.BytesIO()
     np.save(variance_buffer, variance)
     atomic_write_bytes(variance_path, variance_buffer.getvalue())
-    record = {"key": key, "image_sha256": hashlib.sha256(buffer.getvalue()).hexdigest(),
-              "variance_sha256": hashlib.sha256(variance_buffer.getvalue()).hexdigest(), "seconds": seconds,
+    record = {"key": key, "image_sha256": bytes_digest(buffer.getvalue()),
+              "variance_sha256": bytes_digest(variance_buffer.getvalue()), "seconds": seconds,
               "provenance": environment_record()}
     write_json(record_path, record)
     return image, dict(record, cached=False, path=image_path, variance=variance)
@@ -293,7 +219,7 @@ def _read_variance(record, variance_path, shape):
     """The cached per-pixel variance of a reference's mean; ValueError if it does not match its record."""
     with open(variance_path, "rb") as handle:
         data = handle.read()
-    if hashlib.sha256(data).hexdigest() != record.get("variance_sha256"):
+    if bytes_digest(data) != record.get("variance_sha256"):
         raise ValueError(f"{variance_path!r} does not match the SHA-256 its record holds")
     variance = np.load(io.BytesIO(data), allow_pickle=False)
     if variance.shape != shape:
@@ -322,7 +248,7 @@ def _read_cache_entry(record_path, image_path):
     with open(image_path, "rb") as handle:
         data = handle.read()
     expected = record.get("image_sha256")
-    if expected is not None and hashlib.sha256(data).hexdigest() != expected:
+    if expected is not None and bytes_digest(data) != expected:
         raise ValueError(f"{image_path!r} does not match the SHA-256 its record holds")
     image = np.load(io.BytesIO(data), allow_pickle=False)
     if image.dtype != np.float32 or image.ndim != 3:

@@ -10,23 +10,16 @@ scenes. Plain Python: the renderer is not needed.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 import re
 import xml.etree.ElementTree as ElementTree
 from dataclasses import asdict, dataclass, is_dataclass
 
+from ..digest import bytes_digest, digest, file_digest
+
 _GENERATOR_MODULES = ("scenes.py", "procedural.py", "meshes.py")
 
 
-def file_digest(path):
-    """SHA-256 of a file's bytes."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 _PARAMETER = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
@@ -216,11 +209,11 @@ def check_xml_references(path, parameters=()):
 
 def _generator_version():
     folder = os.path.dirname(os.path.abspath(__file__))
-    digest = hashlib.sha256()
+    parts = []
     for name in _GENERATOR_MODULES:
         with open(os.path.join(folder, name), "rb") as handle:
-            digest.update(name.encode() + b"\0" + handle.read())
-    return digest.hexdigest()
+            parts.append(name.encode() + b"\0" + handle.read())
+    return bytes_digest(*parts)
 
 
 def _describe_value(value, files):
@@ -277,7 +270,7 @@ def scene_identity(spec):
     # The digest covers file contents, not where they are: a scene copied elsewhere stays the same scene.
     content = dict(record, file=None, files=sorted(files.values()))
     record["files"] = files
-    record["digest"] = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+    record["digest"] = digest(content)
     return record
 
 

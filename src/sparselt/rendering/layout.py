@@ -2,7 +2,7 @@
 
 This module is pure Python: it decides *what* each dimension of the primary
 sample space (PSS) means for each signal kind. The renderer adapter
-(:mod:`sparselt.rendering.mitsuba_backend`) consumes a :class:`PathLayout` and
+(:mod:`sparselt.rendering.mitsuba`) consumes a :class:`PathLayout` and
 evaluates ``f(S(u))`` for explicit vectors ``u``.
 
 Dimension order of a PSS vector (thesis 2.1.6, 3.2.2; Kelemen et al. 2002):
@@ -203,3 +203,38 @@ def path_layout(kind, max_depth=3, *, thin_lens=False, hide_emitters=False):
         dimensions=tuple(dimensions),
         axes=tuple(axes),
     )
+
+
+#: Cells along each non-image axis when no shape is given (:func:`default_shape`): the lens and the
+#: secondary ray's two axes 16 each, as the thesis's dof and indirect signals (7.1, 7.2: 250x250x16x16);
+#: each light and BSDF dimension of a path vertex 4, as its path-space signals (5.3, 6.1: 100x100x4^8).
+DEFAULT_AXIS_CELLS = {"dof": 16, "indirect": 16, "path": 4, "path-indirect": 4}
+
+
+def default_shape(kind, max_depth, resolution):
+    """The signal grid of ``kind`` when none is given: the film's ``(width, height)``, then
+    :data:`DEFAULT_AXIS_CELLS` cells along every other axis of the kind's layout.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`KINDS`.
+    max_depth : int
+        Longest path (Mitsuba's convention); the number of axes of ``path`` and
+        ``path-indirect`` grows with it.
+    resolution : tuple of int
+        The film's ``(width, height)``.
+
+    Returns
+    -------
+    tuple of int
+
+    Examples
+    --------
+    >>> default_shape("dof", 3, (128, 96))
+    (128, 96, 16, 16)
+    >>> default_shape("path", 2, (64, 64))
+    (64, 64, 4, 4, 4, 4)
+    """
+    axes = path_layout(kind, max_depth, thin_lens=True).axes  # the axes do not depend on the lens
+    return tuple(int(size) for size in resolution) + (DEFAULT_AXIS_CELLS[kind],) * (len(axes) - 2)

@@ -34,14 +34,13 @@ place with :func:`os.replace`, so a reader never sees a partial file.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..digest import digest
 from ..provenance import atomic_write_bytes
 
 #: Bumped whenever a generator's output changes, so that stale cache files are
@@ -976,10 +975,8 @@ def _canonical(value):
 
 
 def parameter_hash(name, parameters):
-    """Short hex digest of a mesh name, its parameters and :data:`MESH_FORMAT_VERSION`."""
-    text = json.dumps({"name": name, "parameters": _canonical(parameters), "version": MESH_FORMAT_VERSION},
-                      sort_keys=True, separators=(",", ":"))  # fmt: skip
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+    """The digest (:func:`sparselt.digest.digest`) of a mesh name, its parameters and :data:`MESH_FORMAT_VERSION`."""
+    return digest({"name": name, "parameters": _canonical(parameters), "version": MESH_FORMAT_VERSION})
 
 
 def mesh_file(name, builder, normals=True, **parameters):

@@ -30,7 +30,7 @@ configuration (attributes ``kind``, ``shape``, ``output_resolution``,
 ``compare.json`` holds them) and the folder, and imports nothing from
 ``experiments/``. Reports choose rows by the methods' roles (the baseline,
 a family), never by their names. Thesis numbers come from
-:mod:`sparselt.thesis_numbers` only.
+:mod:`sparselt.thesis` only (its tables and scene correspondence).
 
 References
 ----------
@@ -45,7 +45,15 @@ import os
 
 import numpy as np
 
-from ..thesis_numbers import thesis_rows
+from ..thesis.numbers import thesis_table
+from ..thesis.tables import (
+    THESIS_GUIDING_TABLES,
+    THESIS_TABLES,
+    THESIS_TIMES,
+    equal_time_thesis,
+    guiding_table,
+    guiding_thesis,
+)
 from .comparison_figures import crop_grid_figure, image_grid_figure, matched_pictures, quality_figure
 from .comparison_rows import (
     COLUMN_ORDER,
@@ -58,37 +66,16 @@ from .comparison_rows import (
     methods_in_order,
 )
 from .page import Figure, Section, page_html
+from .results import RESULT_ROW_ORDER, dataset_csv, results_dataset, summary_dataset
 from .table import Table, markdown_document
 
 #: The relMSE's epsilon when a caller does not say (the comparison's, thesis 8.1.1).
 DEFAULT_EPSILON = 0.01
-#: Thesis Tables 8.1/8.2: the phases timed, as printed.
-THESIS_TIMES = ("Total", "Sampling", "CoSaMP", "Integration")
 #: Table 8's measured columns (means over seeds). "Reconstruction" is every method's reconstruction phase
 #: (``seconds_reconstruction``): CoSaMP for the CoSaMP methods, a filter, the importance map (an SFT or CoSaMP) of
 #: a guided method; only for the CoSaMP methods is it what the thesis's "CoSaMP" column times.
 TABLE_8_COLUMNS = ("Total", "Sampling", "Reconstruction", "Integration", "Other", "SSIM", "relMSE",
                    "luminance ratio")
-
-
-def _by_size(table, columns):
-    """``{first number of the label: values}`` of a thesis table (``'1000x1000'`` -> 1000, ``'40'`` -> 40)."""
-    return {int(label.split("x")[0]): values for label, values in thesis_rows(table, columns)}
-
-
-#: Thesis Tables 8.1/8.2 (CoSaMP execution times, depth of field): our scene -> (table, thesis scene, {spp: times}).
-THESIS_TABLES = {
-    "dof-sculptures": ("8.1", "Dragons", _by_size("8.1", THESIS_TIMES)),
-    "courtyard": ("8.2", "San Miguel", _by_size("8.2", THESIS_TIMES)),
-}
-_GUIDING = ("Samples per Pixel", "SFT Importance Sampling Time (s)")
-_CORNELL_GUIDING = ("6.2", "Cornell Box", _by_size("6.2", _GUIDING + ("Path Tracing Time (s)",)))
-#: Thesis Tables 6.2/6.3 (SFT importance sampling): our scene -> (table, thesis scene, {image size: (spp, SFT s, PT s)}).
-THESIS_GUIDING_TABLES = {
-    "cornell-box": _CORNELL_GUIDING,
-    "cornell-caustics": _CORNELL_GUIDING,
-    "courtyard": ("6.3", "San Miguel", _by_size("6.3", _GUIDING + ("Path Tracing Time",))),
-}
 
 
 def _format(value):
@@ -114,15 +101,21 @@ def _grid(config):
 
 # ---------------------------------------------------------------------------------------------- tables
 def results_csv(rows, columns=COLUMN_ORDER):
-    """``results.csv``'s text: ``columns`` first (in that order), then any other key of the rows, sorted.
+    """``results.csv``'s text, a view of the rows' Dataset (:func:`~sparselt.report.results.results_dataset`).
 
-    Floats with six significant digits; a key a row lacks is an empty cell.
+    ``columns`` first (in that order), then any other key of the rows,
+    sorted; one row per (method, seed, spp) cell run, methods as first seen,
+    then seed and spp ascending (:data:`~sparselt.report.results.RESULT_ROW_ORDER`).
+    Floats with six significant digits; a missing value (a key a row lacks,
+    ``''``, ``NaN``) is an empty cell.
     """
-    header = list(columns) + sorted({key for row in rows for key in row} - set(columns))
-    table = Table(caption="results", label_header=header[0], columns=header[1:],
-                  rows=[(_format(row.get(header[0], "")), [_format(row.get(key, "")) for key in header[1:]])
-                        for row in rows])
-    return table.csv()
+    return dataset_csv(results_dataset(rows), columns, row_order=RESULT_ROW_ORDER)
+
+
+def summary_csv(summary):
+    """``summary.csv``'s text, a view of the summary's Dataset (:func:`~sparselt.report.results.summary_dataset`):
+    ``method``, ``spp``, then the records' keys in their order; one row per (method, spp)."""
+    return dataset_csv(summary_dataset(summary))
 
 
 def table_8(rows, scene, config, *, methods, epsilon=DEFAULT_EPSILON):
@@ -132,10 +125,12 @@ def table_8(rows, scene, config, *, methods, epsilon=DEFAULT_EPSILON):
     ``seconds_reconstruction`` (see :data:`TABLE_8_COLUMNS`); the thesis's
     "CoSaMP" column keeps its label as "thesis CoSaMP". The thesis's four
     times stand beside the methods of family ``'cosamp'`` only, for the
-    scenes of :data:`THESIS_TABLES` at kind ``dof`` (Tables 8.1/8.2 are depth
-    of field); ``table_8.md`` and the page are both made from this one object.
+    scenes of :data:`~sparselt.thesis.tables.THESIS_TABLES` at kind ``dof``
+    (Tables 8.1/8.2 are depth of field; :func:`sparselt.thesis.tables.equal_time_thesis`),
+    captioned then as the thesis's table; ``table_8.md``, the page and
+    ``sparselt reproduce``'s chapter 8 are all made from this one object.
     """
-    thesis = THESIS_TABLES.get(scene) if config.kind == "dof" else None
+    thesis = equal_time_thesis(scene, config.kind)
     cosamp = in_family(methods, "cosamp")
     columns, kinds = ["SPP"] + list(TABLE_8_COLUMNS), [""] + ["ours"] * len(TABLE_8_COLUMNS)
     if thesis:
@@ -156,7 +151,8 @@ def table_8(rows, scene, config, *, methods, epsilon=DEFAULT_EPSILON):
              f"relMSE epsilon = {epsilon}."]
     if thesis:
         notes.append(f"Thesis: Table {thesis[0]} ({thesis[1]}), beside the CoSaMP methods at the same spp.")
-    caption = (f"Table {thesis[0]} layout: " if thesis else "") + f"execution times (s) and quality, {scene}, {_grid(config)}"
+    caption = (f"Table {thesis[0]}: {thesis_table(thesis[0])['caption']} (ours: {scene} = {thesis[1]}, {_grid(config)}; "
+               "times (s) and quality per method)" if thesis else f"execution times (s) and quality, {scene}, {_grid(config)}")
     return Table(caption=caption[0].upper() + caption[1:], columns=columns, kinds=kinds, rows=table_rows,
                  notes=notes, label_header="method")
 
@@ -220,12 +216,41 @@ def _speedup_text(record):
     return f"{_number(value)}x"
 
 
+def guided_budgets(rows, methods):
+    """The guided method the thesis's Tables 6.2/6.3 stand beside, and its budgets beside path tracing's.
+
+    The method is the first of family ``'guided'`` that is a thesis procedure
+    (else the first of the family). Each budget (increasing spp, where the
+    baseline ran at the same spp) is ``{'spp', 'seconds', 'relmse',
+    'pt_seconds', 'pt_relmse'}``, means over seeds
+    (:func:`sparselt.thesis.tables.guiding_table`'s input).
+
+    Returns
+    -------
+    (str or None, list of dict)
+    """
+    family = [method for method in methods_in_order(rows) if method in in_family(methods, "guided")]
+    chosen = next((method for method in family if methods[method].get("thesis_procedure")), family[0] if family else None)
+    baseline = baseline_of(methods)
+    budgets = []
+    for method, spp, group in method_spp_groups([row for row in rows if row["method"] == chosen]):
+        plain = [row for row in rows if row["method"] == baseline and row["spp"] == spp]
+        if plain:
+            budgets.append({"spp": spp, "seconds": group_mean(group, "seconds_total"),
+                            "relmse": group_mean(group, "relmse"), "pt_seconds": group_mean(plain, "seconds_total"),
+                            "pt_relmse": group_mean(plain, "relmse")})
+    return chosen, sorted(budgets, key=lambda budget: budget["spp"])
+
+
 def table_6(rows, scene, config, *, methods):
-    """Tables 6.2/6.3 layout for the guided methods: ``[ours, the thesis's]`` (the thesis's only for its scenes).
+    """Tables 6.2/6.3 layout for the guided methods: ``[ours, the thesis's beside ours]`` (the latter for its scenes).
 
     Ours: image size, spp, map spp, guided time, PT time at the same spp,
     both relMSEs and the guided relMSE over PT's at equal time (mean over
-    seeds). Empty when no method of family ``'guided'`` ran.
+    seeds). For the scenes of :func:`sparselt.thesis.tables.guiding_thesis`,
+    thesis Table 6.2/6.3 beside the budgets of :func:`guided_budgets`
+    (:func:`sparselt.thesis.tables.guiding_table`, as ``sparselt reproduce``
+    shows it). Empty when no method of family ``'guided'`` ran.
     """
     family = in_family(methods, "guided")
     baseline = baseline_of(methods)
@@ -250,13 +275,13 @@ def table_6(rows, scene, config, *, methods):
                  "relMSE / PT at equal time"],
         kinds=["", "", "", "ours", "ours", "ours", "ours", "ours"], rows=table_rows, label_header="method",
         notes=["Guided time includes the pilot pass, the map's reconstruction and the CDFs; mean over seeds."])]
-    thesis = THESIS_GUIDING_TABLES.get(scene)
+    thesis = guiding_thesis(scene)
     if thesis:
-        tables.append(Table(
-            caption=f"Thesis Table {thesis[0]} ({thesis[1]}, SFT importance sampling, 100x100x4^8 map)",
-            columns=["spp", "SFT importance sampling time", "PT time"], kinds=["thesis"] * 3,
-            rows=[(f"{size}x{size}", [str(value) for value in values]) for size, values in thesis[2].items()],
-            label_header="image size"))
+        chosen, budgets = guided_budgets(rows, methods)
+        seeds = getattr(config, "seeds", None)
+        tables.append(guiding_table(thesis[0], budgets, resolution=(width, height), subject=(
+            f"{scene} = {thesis[1]}, {chosen}, map {'x'.join(map(str, config.shape))}, mean over "
+            + (f"{len(seeds)} seeds" if seeds is not None else "seeds"))))
     return tables
 
 
@@ -444,7 +469,7 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
         written.append(name)
 
     text("results.csv", results_csv(rows, columns))
-    text("summary.csv", results_csv(summary, tuple(summary[0]) if summary else ("method", "spp")))
+    text("summary.csv", summary_csv(summary))
     figure("quality_vs_time.png", quality_figure(rows, scene, epsilon, summary, fit))
     if rows:
         matched = matched_pictures(rows, reference, image_of)
@@ -466,5 +491,6 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
 
 
 __all__ = ["COLUMN_ORDER", "DEFAULT_EPSILON", "EXTRA_COLUMNS", "RESULT_COLUMNS", "TABLE_8_COLUMNS", "THESIS_GUIDING_TABLES",
-           "THESIS_TABLES", "comparison_section", "equal_time_table", "equal_time_verdicts", "methods_table", "results_csv",
-           "results_table", "table_6", "table_8", "verdict_sentence", "write_comparison_outputs"]
+           "THESIS_TABLES", "THESIS_TIMES", "comparison_section", "equal_time_table", "equal_time_verdicts",
+           "guided_budgets", "methods_table", "results_csv",
+           "results_table", "summary_csv", "table_6", "table_8", "verdict_sentence", "write_comparison_outputs"]

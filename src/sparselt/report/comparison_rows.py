@@ -40,6 +40,13 @@ def methods_in_order(rows):
     return list(dict.fromkeys(row["method"] for row in rows))
 
 
+def in_comparison_order(rows, methods):
+    """The rows sorted as a comparison holds them: by ``methods`` (the baseline first, then the configured
+    methods; any other after them, by name), then seed, then spp; a new list."""
+    order = {name: index for index, name in enumerate(methods)}
+    return sorted(rows, key=lambda row: (order.get(row["method"], len(order)), row["method"], row["seed"], row["spp"]))
+
+
 def method_spp_groups(rows):
     """``(method, spp, rows)`` per comparison cell (its rows over seeds): methods as first seen, spp ascending."""
     for method in methods_in_order(rows):
@@ -66,7 +73,8 @@ def matched_rows(rows):
 
     The target is the earliest time at which every method has an image: the
     largest over methods of each method's shortest run. Each method shows its
-    run closest to it in log time (first seed).
+    run closest to it in log time, at the smallest seed (chosen by its value,
+    never by a row's position: the rows may come in any order).
 
     Returns
     -------
@@ -78,7 +86,7 @@ def matched_rows(rows):
     if not rows:
         raise ValueError("matched_rows needs at least one row")
     methods = methods_in_order(rows)
-    seed = rows[0]["seed"]
+    seed = min(row["seed"] for row in rows)
     chosen = [row for row in rows if row["seed"] == seed]
     target = max(min(row["seconds_total"] for row in chosen if row["method"] == method) for method in methods)
     matched = []
@@ -88,5 +96,5 @@ def matched_rows(rows):
     return matched, target
 
 
-__all__ = ["COLUMN_ORDER", "EXTRA_COLUMNS", "RESULT_COLUMNS", "baseline_of", "group_mean", "in_family", "matched_rows", "mean_curve",
+__all__ = ["COLUMN_ORDER", "EXTRA_COLUMNS", "RESULT_COLUMNS", "baseline_of", "group_mean", "in_comparison_order", "in_family", "matched_rows", "mean_curve",
            "method_spp_groups", "methods_in_order"]

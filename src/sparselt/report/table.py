@@ -24,7 +24,7 @@ import re
 from dataclasses import dataclass, field
 
 #: What a column holds: the thesis's printed values, our measurements, or neither (a setting, a label).
-KINDS = ("thesis", "ours", "")
+COLUMN_KINDS = ("thesis", "ours", "")
 
 #: The table part of the report page's style sheet: thesis columns shaded beige, ours green.
 TABLE_STYLE = """
@@ -181,7 +181,7 @@ class Table:
     ------
     ValueError
         ``kinds`` or a row of another length than ``columns``, or a kind
-        outside :data:`KINDS`; the message names the row or the kind.
+        outside :data:`COLUMN_KINDS`; the message names the row or the kind.
     TypeError
         A column header, label or note that is not a string.
 
@@ -209,8 +209,8 @@ class Table:
         if len(self.kinds) != len(self.columns):
             raise ValueError(f"kinds has {len(self.kinds)} entries for {len(self.columns)} columns; give one per column")
         for kind in self.kinds:
-            if kind not in KINDS:
-                raise ValueError(f"column kind {kind!r} is not one of {', '.join(map(repr, KINDS))}")
+            if kind not in COLUMN_KINDS:
+                raise ValueError(f"column kind {kind!r} is not one of {', '.join(map(repr, COLUMN_KINDS))}")
         rows = []
         for label, cells in self.rows:
             cells = [_text(cell) for cell in cells]
@@ -323,4 +323,4 @@ def markdown_document(*parts):
     return "\n".join(block.rstrip("\n") + "\n" for block in blocks if block)
 
 
-__all__ = ["KINDS", "TABLE_STYLE", "Table", "markdown_document", "thesis_display_text"]
+__all__ = ["COLUMN_KINDS", "TABLE_STYLE", "Table", "markdown_document", "thesis_display_text"]

@@ -43,6 +43,7 @@ import json
 import os
 from datetime import datetime, timezone
 
+from ..digest import bytes_digest
 from ..provenance import atomic_write, atomic_write_bytes, environment_record, read_json
 from .lock import LOCK_FILE, StoreLock, check_unlocked
 
@@ -50,6 +51,7 @@ MANIFEST_FILE = "sparselt-folder.json"
 FORMAT = "sparselt-experiment-folder"
 FORMAT_VERSION = 1
 CELLS = "cells"
+REPEATS = "repeats"
 TEMPORARY_PREFIX = ".tmp-"
 
 
@@ -243,6 +245,24 @@ class ExperimentFolder:
         if not os.access(probe, os.W_OK | os.X_OK):
             raise PermissionError(f"output folder {self.path!r} cannot be created (no write permission on {probe!r})")
 
+    def read_manifest(self):
+        """The folder's manifest, checked, for a reader: no lock is taken and nothing is written.
+
+        Raises
+        ------
+        FolderError
+            The path is not a folder, holds no sparselt manifest (or a
+            damaged one), or holds a folder of another kind than
+            :attr:`kind`; the message names the path.
+        """
+        manifest_path = os.path.join(self.path, MANIFEST_FILE)
+        if not os.path.isfile(manifest_path):
+            raise FolderError(f"{self.path!r} is not a sparselt {self.kind} folder: it holds no {MANIFEST_FILE}")
+        manifest = self._read_manifest(manifest_path)
+        if manifest["kind"] != self.kind:
+            raise FolderError(f"{self.path!r} holds a {manifest['kind']!r} run, not a {self.kind!r} one")
+        return manifest
+
     def _read_manifest(self, manifest_path):
         manifest = read_json(manifest_path)
         if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
@@ -383,22 +403,22 @@ class ExperimentFolder:
         return self.write_bytes(name, buffer.getvalue())
 
     def write_png(self, name, image, *, exposure=1.0):
-        """A linear ``(height, width, 3)`` image, tone-mapped (:func:`sparselt.images.png_bytes`)."""
-        from ..images import png_bytes
+        """A linear ``(height, width, 3)`` image, tone-mapped (:func:`sparselt.image_io.png_bytes`)."""
+        from ..image_io import png_bytes
 
         return self.write_bytes(name, png_bytes(image, exposure=exposure))
 
     def write_figure(self, name, figure, **options):
         """A matplotlib figure as PNG; the figure is closed."""
-        from ..images import figure_bytes
+        from ..image_io import figure_bytes
 
         return self.write_bytes(name, figure_bytes(figure, **options))
 
     def write_exr(self, name, image):
-        """A float32 ``(height, width, 3)`` image as OpenEXR (through the renderer's module)."""
-        from ..rendering import mitsuba_backend
+        """A float32 ``(height, width, 3)`` image as OpenEXR (:func:`sparselt.image_io.exr_bytes`)."""
+        from ..image_io import exr_bytes
 
-        return self.write_bytes(name, mitsuba_backend.exr_bytes(image))
+        return self.write_bytes(name, exr_bytes(image))
 
     def write_image(self, stem, image, *, exposure=1.0):
         """``stem.npy`` (float32), ``stem.exr`` and ``stem.png``: the three forms of every result image."""
@@ -436,6 +456,21 @@ class ExperimentFolder:
         """Record a finished cell (after its artefacts are written)."""
         return self.write_json(f"{CELLS}/{name}.json", record)
 
+    def repeats(self, name):
+        """The timing repeats of cell ``name`` recorded so far (its record under ``repeats/``), or ``None``.
+
+        A cell run several times (a comparison's timing repeats, in rounds over
+        every cell) records each repeat as it finishes, so a run interrupted
+        between rounds resumes within the round; the cell itself enters
+        ``cells/`` only with all its repeats (:meth:`record_cell`).
+        """
+        path = self.path_of(f"{REPEATS}/{name}.json")
+        return read_json(path) if os.path.isfile(path) else None
+
+    def record_repeat(self, name, record):
+        """Record the repeats of cell ``name`` so far (see :meth:`repeats`)."""
+        return self.write_json(f"{REPEATS}/{name}.json", record)
+
     def complete(self, **summary):
         """Mark the folder complete (every cell is in); ``summary`` goes into this command's history entry."""
         self._require_open()
@@ -451,13 +486,11 @@ class ExperimentFolder:
 def signal_identity(signal):
     """What identifies a stored signal's content for a folder derived from it (``show``, ``analyze``): its
     acquisition configuration, scene digest and a digest of its chunk checksums (not where it is stored)."""
-    import hashlib
-
     meta = signal.meta or {}
     checksums = json.dumps(meta.get("chunk_crc32") or [], separators=(",", ":")).encode()
     return {"kind": signal.kind, "shape": list(signal.shape), "config": meta.get("config"),
             "scene_digest": (meta.get("scene_identity") or {}).get("digest"),
-            "content_digest": hashlib.sha256(checksums).hexdigest() if meta.get("chunk_crc32") else None}
+            "content_digest": bytes_digest(checksums) if meta.get("chunk_crc32") else None}
 
 
 def _remove_listed_files(root, names):

@@ -4,10 +4,10 @@ Each chapter runner (one module per chapter family: :mod:`.integration` for 4,
 :mod:`.sparsity` for 5 and 7, :mod:`.sft` for 6, :mod:`.equal_time` for 8)
 runs, or finds finished, its experiments in ``DIR/chapterN/`` and returns a
 :class:`~sparselt.report.Section`: the thesis's tables (from
-:mod:`sparselt.thesis_numbers`) beside our numbers, every data figure under
+:mod:`sparselt.thesis.numbers`) beside our numbers, every data figure under
 the thesis's caption with the thesis's finding and ours beneath it, and
 verdicts that compare our numbers with the direction the thesis reports
-(:mod:`sparselt.thesis_findings`). A finished chapter records its section in
+(:mod:`sparselt.thesis.findings`). A finished chapter records its section in
 ``cells/chapterN.json`` so that a rerun only writes the page again.
 
 Scales (:mod:`.scales`): ``tiny`` (the tests), ``quick`` (minutes), ``medium``
@@ -20,10 +20,10 @@ import os
 import time
 from dataclasses import asdict
 
-from ...measurement import progress_bar
 from ...provenance import environment_record
 from ...report import Section, page_html
-from ...storage.folder import ExperimentFolder
+from ...thesis.scenes import correspondence_text
+from ..protocol import Experiment, run_experiment
 from .common import ChapterRun
 from .equal_time import CHAPTER_8_METHODS, chapter_8
 from .integration import chapter_4, table_4_1
@@ -58,6 +58,26 @@ def plugin_methods_for_chapter_8(plugins):
     return runnable, tuple(name for name in added if name not in runnable)
 
 
+def chapter_8_rows(methods):
+    """Extra rows of chapter 8's comparison: method names or variants (``cosamp:gamma=0.5``), checked now.
+
+    Raises
+    ------
+    ValueError
+        A malformed variant, an unknown method or option, a value the option
+        refuses (:func:`~sparselt.methods.variants.parse_method_variant`), or
+        a method without depth of field (chapter 8's kind).
+    """
+    from ...methods import method_class, parse_method_variant
+
+    rows = tuple(dict.fromkeys(str(text).strip() for text in methods))
+    for row in rows:
+        cls = method_class(parse_method_variant(row)[0])
+        if "dof" not in cls.kinds:
+            raise ValueError(f"method {row!r} does not support depth of field (kind 'dof'), chapter 8's comparison")
+    return rows
+
+
 def _duration(minutes):
     return f"{minutes:.0f} min" if minutes < 90 else f"{minutes / 60:.1f} h"
 
@@ -65,7 +85,7 @@ def _duration(minutes):
 RUNNERS = {"4": chapter_4, "5": chapter_5, "6": chapter_6, "7": chapter_7, "8": chapter_8}
 
 
-def reproduce(chapter, scale, out, *, progress=True, overwrite=False, plugins=()):
+def reproduce(chapter, scale, out, *, progress=True, overwrite=False, plugins=(), methods=()):
     """Run the chapters' experiments into ``out`` and write ``out/index.html``; return its path.
 
     ``out`` is an :class:`~sparselt.storage.folder.ExperimentFolder` whose
@@ -76,7 +96,9 @@ def reproduce(chapter, scale, out, *, progress=True, overwrite=False, plugins=()
     its own folder or signal store.
 
     ``plugins`` are modules (``--plugin``) whose methods join chapter 8's
-    equal-time comparison (those that support depth of field).
+    equal-time comparison (those that support depth of field); ``methods``
+    are more rows of it: method names or variants ``METHOD:NAME=VALUE``
+    (:func:`chapter_8_rows`), each a row named as written.
 
     Raises
     ------
@@ -84,59 +106,83 @@ def reproduce(chapter, scale, out, *, progress=True, overwrite=False, plugins=()
         Unknown chapter or scale, a folder of another scale or holding foreign
         files, a plug-in that cannot be used, before anything runs.
     """
-    chapters = _check(chapter, scale)
-    extra, skipped = plugin_methods_for_chapter_8(plugins)
-    identity = {"scale": scale}
-    if extra:
-        identity["plugin_methods"] = sorted(extra)
-    folder = ExperimentFolder(out, kind="reproduce", identity=identity, overwrite=overwrite)
-    folder.inspect()
-    sizes = get_scale(scale)
-    minutes = sum(sizes.minutes[number] for number in chapters)
-    if minutes >= 10:
-        print(f"reproduce: the {scale} scale takes about {_duration(minutes)} on 2 cores (chapters "
-              + ", ".join(f"{number}: {_duration(sizes.minutes[number])}" for number in chapters)
-              + "); rerun the same command to resume after an interruption", flush=True)
-    say = print if progress else (lambda *arguments, **options: None)
-    if skipped:
-        say(f"reproduce: plug-in methods {', '.join(skipped)} do not support depth of field (chapter 8): not run")
-    sections = []
-    started = time.perf_counter()
-    with folder.open():
-        # One progress display for the whole run: a bar over the chapters; the experiments inside run quietly.
-        bar = progress_bar(progress, total=len(chapters), description="reproduce", unit="piece")
-        try:
-            for number in chapters:
-                if bar is not None:
-                    bar.set_postfix_str(f"chapter {number}")
-                record = folder.cell(f"chapter{number}")
-                if record is not None:
-                    sections.append(Section.from_record(record["section"]))
-                else:
-                    run = ChapterRun(sizes, number, folder, folder.claim_folder(f"chapter{number}"))
-                    start = time.perf_counter()
-                    # Only chapter 8 runs a general equal-time comparison that other methods can join.
-                    extras = {"plugin_methods": extra} if number == "8" and extra else {}
-                    section = RUNNERS[number](run, **extras)
-                    section.seconds = time.perf_counter() - start
-                    folder.record_cell(f"chapter{number}", {"scale": scale, "section": asdict(section)})
-                    sections.append(section)
-                if bar is not None:
-                    bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
-        path = folder.write_text("index.html", page_html(
-            folder.path, "sparselt: the thesis's experiments, reproduced", sections, environment_record(),
-            note=f"Scale '{scale}' on {os.cpu_count()} cores; total wall time {time.perf_counter() - started:.1f} s "
-                 f"(chapters found finished are not rerun; expected at this scale on 2 cores: {_duration(minutes)}). "
-                 "Seeds: signals and methods 1, references 0. Scenes: "
-                 "Dragons = dof-sculptures, San Miguel = courtyard, Cornell Box = cornell-box (cornell-caustics for "
-                 "the caustics). Thesis values are shaded beige, ours green."))
-        folder.complete()
-    say(f"reproduce: wrote {path}")
+    path = run_experiment(ReproduceExperiment(chapter, scale, plugins=plugins, methods=methods, progress=progress),
+                          out, overwrite=overwrite, progress=progress)
+    if progress:
+        print(f"reproduce: wrote {path}")
     return path
 
 
-__all__ = ["CHAPTERS", "CHAPTER_8_METHODS", "RUNNERS", "SCALES", "plugin_methods_for_chapter_8", "reproduce",
-           "table_4_1"]
+class ReproduceExperiment(Experiment):
+    """``sparselt reproduce`` as an experiment: one cell per chapter (its record is the chapter's
+    :class:`~sparselt.report.Section`; its experiments live in ``chapterN/``); the report is ``index.html``.
+
+    Parameters are those of :func:`reproduce`; :meth:`validate` checks them
+    and loads the plug-ins.
+    """
+
+    kind = "reproduce"
+    cell_unit = "chapter"
+
+    def __init__(self, chapter, scale, *, plugins=(), methods=(), progress=True):
+        self.chapter, self.scale, self.plugins, self.methods = chapter, scale, tuple(plugins), tuple(methods)
+        self.progress = progress
+        self.chapters, self.extra, self.skipped = None, (), ()
+
+    def validate(self):
+        self.chapters = _check(self.chapter, self.scale)
+        extra, self.skipped = plugin_methods_for_chapter_8(self.plugins)
+        self.extra = tuple(dict.fromkeys(extra + chapter_8_rows(self.methods)))  # variants (METHOD:NAME=VALUE) too
+
+    def identity(self):
+        identity = {"scale": self.scale}
+        if self.extra:
+            identity["plugin_methods"] = sorted(self.extra)
+        return identity
+
+    def _minutes(self):
+        """The expected minutes of the chapters run, at this scale on 2 cores."""
+        sizes = get_scale(self.scale)
+        return sum(sizes.minutes[number] for number in self.chapters)
+
+    def prepare(self):
+        """Say how long the scale takes (from 10 minutes on) and which plug-in methods cannot run; start the clock
+        of the page's total wall time."""
+        sizes = get_scale(self.scale)
+        minutes = self._minutes()
+        if minutes >= 10:
+            print(f"reproduce: the {self.scale} scale takes about {_duration(minutes)} on 2 cores (chapters "
+                  + ", ".join(f"{number}: {_duration(sizes.minutes[number])}" for number in self.chapters)
+                  + "); rerun the same command to resume after an interruption", flush=True)
+        if self.skipped and self.progress:
+            print(f"reproduce: plug-in methods {', '.join(self.skipped)} do not support depth of field (chapter 8): "
+                  "not run")
+        return {"started": time.perf_counter()}
+
+    def plan(self):
+        return [f"chapter{number}" for number in self.chapters]
+
+    def run_cell(self, name, state, folder):
+        """Run chapter ``name``'s experiments quietly into ``chapterN/``; record its section and its seconds."""
+        number = name[len("chapter"):]
+        run = ChapterRun(get_scale(self.scale), number, folder, folder.claim_folder(name))
+        start = time.perf_counter()
+        # Only chapter 8 runs a general equal-time comparison that other methods can join.
+        extras = {"plugin_methods": self.extra} if number == "8" and self.extra else {}
+        section = RUNNERS[number](run, **extras)
+        section.seconds = time.perf_counter() - start
+        return {"scale": self.scale, "section": asdict(section)}
+
+    def report(self, folder, state, records):
+        """``index.html``: every chapter's section, in chapter order; returns its path."""
+        sections = [Section.from_record(records[name]["section"]) for name in self.plan()]
+        return folder.write_text("index.html", page_html(
+            folder.path, "sparselt: the thesis's experiments, reproduced", sections, environment_record(),
+            note=f"Scale '{self.scale}' on {os.cpu_count()} cores; total wall time "
+                 f"{time.perf_counter() - state['started']:.1f} s (chapters found finished are not rerun; expected "
+                 f"at this scale on 2 cores: {_duration(self._minutes())}). Seeds: signals and methods 1, "
+                 f"references 0. Scenes: {correspondence_text()}. Thesis values are shaded beige, ours green."))
+
+
+__all__ = ["CHAPTERS", "CHAPTER_8_METHODS", "RUNNERS", "SCALES", "ReproduceExperiment", "chapter_8_rows",
+           "plugin_methods_for_chapter_8", "reproduce", "table_4_1"]

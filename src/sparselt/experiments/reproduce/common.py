@@ -6,7 +6,7 @@ import os
 from dataclasses import dataclass
 
 from ...report import Figure
-from ...thesis_findings import figure_finding, judge
+from ...thesis.findings import figure_finding, judge
 
 
 @dataclass
@@ -58,7 +58,7 @@ def thesis_figure(path, numbers, ours="", findings=()):
     ours : str
         What our image is of (scene, grid, spp), appended to the caption.
     findings : sequence of str
-        Our sentences (from :func:`sparselt.thesis_findings.judge` or measured); the thesis's finding comes first.
+        Our sentences (from :func:`sparselt.thesis.findings.judge` or measured); the thesis's finding comes first.
     """
     numbers = (numbers,) if isinstance(numbers, str) else tuple(numbers)
     records = [figure_finding(number) for number in numbers]
@@ -82,15 +82,13 @@ def sampled_signal(scene, kind, shape, spp, folder, name, progress, **lens):
     """A signal sampled into ``folder/name``; a complete one is reused only if it is this very configuration
     and scene (else it is sampled again: the old store stays until the new one is complete)."""
     from ...rendering.acquire import AcquisitionConfig, acquire_signal
-    from ...rendering.identity import scene_identity
-    from ...rendering.scenes import get_scene
     from ...signal import load_signal, signal_status
 
     path = os.path.join(folder, name)
     config = AcquisitionConfig(scene=scene, kind=kind, shape=tuple(shape), spp=spp, seed=1, **lens)
     if signal_status(path) == "complete":
         signal = load_signal(path)
-        digest = scene_identity(get_scene(scene).with_lens(config.aperture, config.focus_distance))["digest"]
+        digest = config.setup().scene_identity["digest"]
         if signal.meta.get("config") == config.record() and \
                 (signal.meta.get("scene_identity") or {}).get("digest") == digest:
             return signal

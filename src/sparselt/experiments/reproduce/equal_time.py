@@ -5,16 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...report import Section, Table
-from ...thesis_findings import claim_values, figure_finding, judge, table_claims, thesis_findings
-from ...thesis_numbers import thesis_table
-from .common import grid_text, thesis_figure
+from ...report import Section
+from ...thesis.findings import claim_values, figure_finding, judge, table_claims, thesis_findings
+from ...thesis.scenes import EQUAL_TIME_TABLES, table_scene
+from .common import thesis_figure
 
 CHAPTER_8_METHODS = ("pt", "samples-mean", "cosamp", "cosamp-thesis", "bilateral", "cosamp-bilateral", "oidn",
                      "guided-cosamp", "guided-bilateral")
-#: our scene -> (thesis table, thesis scene, gamma (8.1.1), lens)
-SCENES = {"dof-sculptures": ("8.1", "Dragons", 0.25, {}),
-          "courtyard": ("8.2", "San Miguel", 0.5, {"aperture": 0.1, "focus_distance": 8.0})}
+#: our scene -> (thesis table, thesis scene, gamma (8.1.1), lens), from :mod:`sparselt.thesis.scenes`
+SCENES = {record.scene: (record.table, record.thesis_scene.name, record.thesis_scene.gamma, record.lens())
+          for record in map(table_scene, EQUAL_TIME_TABLES)}
 #: The thesis's figure groups (``thesis_findings.json``: each chapter-8 figure's group, scene and layout) ->
 #: the method families shown beside PT; None: only the method the group's claim is about.
 GROUP_FAMILIES = {"reconstruction": ("ablation", "cosamp"), "filters": ("filter", "denoiser"), "guided": ("guided",),
@@ -53,7 +53,7 @@ def _scene_section(run, scene, plugin_methods):
     from ...report.comparison import comparison_section
     from ..compare import ComparisonConfig, compare
 
-    number, thesis_scene, gamma, lens = SCENES[scene]
+    number, _, gamma, lens = SCENES[scene]
     scale = run.scale
     config = ComparisonConfig(
         scene=scene, kind="dof", shape=scale.compare_shape, methods=CHAPTER_8_METHODS + plugin_methods,
@@ -65,14 +65,12 @@ def _scene_section(run, scene, plugin_methods):
     section = comparison_section(run.sub(name), run.page_path(name), result.rows, config, scene,
                                  methods=result.methods, summary=result.summary)
     section.verdicts = [f"{scene}: {verdict}" for verdict in section.verdicts]
-    # The per-method table keeps our columns only: the thesis's times stand in Table 8.1/8.2 below, per spp.
-    section.tables = [_ours_only(table) for table in section.tables]
+    # Table 8.1/8.2 is the single run's own (report.comparison.table_8): the thesis's times beside the CoSaMP methods.
     procedure = "cosamp-thesis"
     groups = {spp: [row for row in result.rows if row["method"] == procedure and row["spp"] == spp]
               for spp in config.spps}
     means = {spp: {key: float(np.mean([row[key] for row in group])) for key in PHASE_COLUMNS.values()}
              for spp, group in groups.items() if group}
-    section.tables.insert(0, _table_8(number, thesis_scene, scene, config, means))
     spps = sorted(means)
     for claim in table_claims(number):
         ours = claim_values(claim, lambda quantity: [means[spp][PHASE_COLUMNS[quantity["column"]]] for spp in spps])
@@ -80,39 +78,6 @@ def _scene_section(run, scene, plugin_methods):
                                                               f"{', '.join(map(str, spps))} spp").sentence)
     section.figures = _group_figures(run, name, scene, result)
     return section
-
-
-def _ours_only(table):
-    """``table`` without its thesis columns (and 'layout' dropped from its caption)."""
-    keep = [index for index, kind in enumerate(table.kinds) if kind != "thesis"]
-    if len(keep) == len(table.kinds):
-        return table
-    return Table(caption=table.caption.split(": ", 1)[-1][:1].upper() + table.caption.split(": ", 1)[-1][1:],
-                 columns=[table.columns[index] for index in keep], kinds=[table.kinds[index] for index in keep],
-                 rows=[(label, [cells[index] for index in keep]) for label, cells in table.rows],
-                 notes=[note for note in table.notes if not note.startswith("Thesis:")],
-                 label_header=table.label_header)
-
-
-def _table_8(number, thesis_scene, scene, config, means):
-    """Table 8.1/8.2: one row per spp (the thesis's and ours), the thesis's times beside our thesis procedure's."""
-    from ...report.comparison import THESIS_TABLES, THESIS_TIMES
-
-    thesis = THESIS_TABLES[scene][2]  # {spp: the thesis's times of THESIS_TIMES}
-    rows = []
-    for spp in sorted(set(thesis) | set(means)):
-        cells = []
-        for index, phase in enumerate(THESIS_TIMES):
-            cells += [f"{thesis[spp][index]:g}" if spp in thesis else "-",
-                      f"{means[spp][PHASE_COLUMNS[phase]]:.3f}" if spp in means else "-"]
-        rows.append((str(spp), cells))
-    columns = []
-    for phase in THESIS_TIMES:
-        columns += [f"thesis {phase}", "ours" if phase != "CoSaMP" else "ours: reconstruction"]
-    return Table(caption=f"Table {number}: {thesis_table(number)['caption']} (ours: {scene} = {thesis_scene}, "
-                         f"cosamp-thesis, {grid_text(config.shape)}, mean over seeds, median of repeats)",
-                 columns=columns, kinds=["thesis", "ours"] * 4, rows=rows, label_header="spp",
-                 notes=["'-': not run at this scale (ours) or not in the thesis's table."])
 
 
 def _group_figures(run, name, scene, result):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 
 from ...report import Section, Table
-from ...thesis_findings import judge, table_claim
-from ...thesis_numbers import thesis_table
+from ...thesis.findings import judge, table_claim
+from ...thesis.numbers import thesis_table
 from .common import thesis_figure
 
 
@@ -14,7 +14,7 @@ def _exponent(value):
 
 
 def table_4_1(result, sizes):
-    """Thesis Table 4.1 (its complexities, through :mod:`sparselt.thesis_numbers`) beside our fitted exponents."""
+    """Thesis Table 4.1 (its complexities, through :mod:`sparselt.thesis.numbers`) beside our fitted exponents."""
     from ..integration_report import THESIS_ROWS, thesis_complexity
 
     rows = []

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
-from ...report.comparison import THESIS_GUIDING_TABLES, THESIS_TABLES
+from ...thesis.tables import thesis_guiding_times, thesis_times
 
-#: The thesis's budgets: Table 6.2's spp per image size, Table 8.1's spp (both from :mod:`sparselt.thesis_numbers`).
-THESIS_MAP_SPPS = tuple(values[0] for values in THESIS_GUIDING_TABLES["cornell-box"][2].values())
-THESIS_COMPARE_SPPS = tuple(THESIS_TABLES["dof-sculptures"][2])
+#: The thesis's budgets: Table 6.2's spp per image size, Table 8.1's spp (both from :mod:`sparselt.thesis.tables`).
+THESIS_MAP_SPPS = tuple(values[0] for values in thesis_guiding_times("6.2").values())
+THESIS_COMPARE_SPPS = tuple(thesis_times("8.1"))
 
 
 @dataclass(frozen=True)

@@ -5,17 +5,19 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
-from ...report import Section, Table
-from ...thesis_findings import judge, table_claims
-from ...thesis_numbers import thesis_table
+from ...report import Section
+from ...thesis.findings import judge, table_claims
+from ...thesis.scenes import SAN_MIGUEL, table_scene
+from ...thesis.tables import table_6_1, thesis_table_6_1
 from .common import figure_claim, grid_text, thesis_figure
 
-#: Figures 6.3-6.7: our guided-map scene -> (its thesis table, image-grid figure, crop-grid figures)
-MAP_SCENES = {"cornell-caustics": ("6.2", "6.3", ("6.4", "6.5")), "courtyard": ("6.3", "6.6", ("6.7",))}
-#: Table 6.1 on both scenes: our scene -> (thesis figure, alphas: 'all' of the scale's, or the first only)
-TABLE_61_SCENES = {"cornell-box": ("6.1", "all"), "courtyard": ("6.2", "first")}
+#: Figures 6.3-6.7: our guided-map scene (:mod:`sparselt.thesis.scenes`) -> (its thesis table, image-grid figure,
+#: crop-grid figures)
+MAP_SCENES = {table_scene(table).scene: (table, grid, crops)
+              for table, grid, crops in (("6.2", "6.3", ("6.4", "6.5")), ("6.3", "6.6", ("6.7",)))}
+#: Table 6.1 on both scenes: our scene -> (thesis figure, alphas: 'all' of the scale's, or the first only); the
+#: thesis ran Table 6.1's scene, and shows San Miguel's Figure 6.2 beside it.
+TABLE_61_SCENES = {table_scene("6.1").scene: ("6.1", "all"), SAN_MIGUEL.scene: ("6.2", "first")}
 #: Above this many cells Table 6.1's alpha 32 (which reads every cell) is not run: several complex arrays of
 #: the signal (10 GiB each at the thesis's 6.55e8 cells) exceed this machine's 24 GB.
 DENSE_LIMIT_CELLS = 2 * 10**8
@@ -23,12 +25,14 @@ DENSE_LIMIT_CELLS = 2 * 10**8
 
 def chapter_6(run):
     """Table 6.1 and Figures 6.1/6.2 (`sparselt table61`), then the importance-map comparisons."""
-    from ..sft_path_space import THESIS_SHAPE, Table61Config, run_table61, thesis_table_6_1
+    from ..compare import RELMSE_EPSILON
+    from ..sft_path_space import Table61Config, run_table61
 
     scale = run.scale
     shape = scale.table61_shape
     size = math.prod(shape)
     thesis = thesis_table_6_1()
+    thesis_scene = table_scene("6.1").scene
     alphas = tuple(alpha for alpha in scale.table61_alphas if alpha < 32 or size <= DENSE_LIMIT_CELLS)
     left_out = [alpha for alpha in scale.table61_alphas if alpha not in alphas]
     table_rows, figures, verdicts, links = [], [], [], []
@@ -38,23 +42,17 @@ def chapter_6(run):
                                noise_spps=(), reference_spp=scale.table61_reference_spp)
         rows = run_table61(config, run.sub(f"table61-{scene}"), progress=run.progress)
         results[scene] = rows
-        for row in rows:
-            reference = thesis.get(int(row["alpha"]), {}) if scene == "cornell-box" else {}
-            table_rows.append((f"alpha {row['alpha']:g}, {scene}", [
-                f"{reference['total']:,}" if reference else "-", f"{row['total_samples']:,}",
-                f"{reference['total'] / math.prod(THESIS_SHAPE):.2f}" if reference else "-",
-                f"{row['total_samples'] / size:.2f}", f"{row['sft']['relmse']:.3g}",
-                f"{row['pt_equal_samples']['relmse']:.3g}"]))
+        table_rows += [dict(row, scene=scene) for row in rows]
         measured = ([row["sft"]["relmse"] for row in rows], [row["pt_equal_samples"]["relmse"] for row in rows])
         subject = f"{scene}, {grid_text(shape)}, alpha {rows[0]['alpha']:g}"
         figures.append(thesis_figure(run.page_path(f"table61-{scene}", "figure_6_1.png"), figure_number, subject,
                                      [figure_claim(figure_number, measured, subject=f"{scene}, every alpha run")]))
         links += [(f"table_6_1.md ({scene})", run.page_path(f"table61-{scene}", "table_6_1.md"))]
-    cornell = results["cornell-box"]
+    cornell = results[thesis_scene]
     for claim in table_claims("6.1"):
         ours = [row["total_samples"] / size for row in cornell]
         run_alphas = ", ".join(f"{row['alpha']:g}" for row in cornell)
-        verdicts.append(judge(claim, ours, subject=f"cornell-box {grid_text(shape)}, alpha {run_alphas}").sentence)
+        verdicts.append(judge(claim, ours, subject=f"{thesis_scene} {grid_text(shape)}, alpha {run_alphas}").sentence)
     notes = []
     if left_out:
         notes.append(f"Alpha {', '.join(f'{alpha:g}' for alpha in left_out)} not run: it reads every cell (1.0 N "
@@ -63,11 +61,9 @@ def chapter_6(run):
     thesis_alphas = [alpha for alpha in thesis if float(alpha) not in alphas]
     if thesis_alphas and not left_out:
         notes.append(f"Thesis alphas {', '.join(map(str, thesis_alphas))} are not run at this scale.")
-    table = Table(caption=f"Table 6.1: {thesis_table('6.1')['caption']} (ours: grid {grid_text(shape)}, K = N/10^4, "
-                          "1 path sample per lattice point; the thesis ran the Cornell box)",
-                  columns=["thesis total samples", "ours", "thesis samples / N", "ours", "ours: SFT relMSE",
-                           "PT relMSE, same samples"],
-                  kinds=["thesis", "ours", "thesis", "ours", "ours", "ours"], rows=table_rows, notes=notes)
+    table = table_6_1(table_rows, caption_suffix=f" (ours: grid {grid_text(shape)}, K = N/10^4, 1 path sample per "
+                                                 f"lattice point; the thesis ran {thesis_scene})",
+                      epsilon=RELMSE_EPSILON, notes=notes)
     maps = [_map_section(run, scene, *values) for scene, values in MAP_SCENES.items()]
     return Section(title="Chapter 6: the Sparse Fourier Transform on path space",
                    introduction=f"The SFT with the renderer as its oracle (6.1), then SFT importance maps guiding "
@@ -80,7 +76,7 @@ def chapter_6(run):
 
 def _map_section(run, scene, table_number, grid_figure, crop_figures):
     """Tables 6.2/6.3 and the guided images: PT and guided-sft at the same spp and at equal time."""
-    from ...report.comparison import THESIS_GUIDING_TABLES, comparison_section
+    from ...report.comparison import comparison_section, guided_budgets, table_6
     from ..compare import ComparisonConfig, compare
 
     scale = run.scale
@@ -95,30 +91,11 @@ def _map_section(run, scene, table_number, grid_figure, crop_figures):
     section = comparison_section(run.sub(name), run.page_path(name), result.rows, config, scene,
                                  methods=result.methods, summary=result.summary)
     width, height = config.output_resolution
-    ours = []
-    for spp in config.spps:
-        guided = [row for row in result.rows if row["method"] == "guided-sft" and row["spp"] == spp]
-        plain = [row for row in result.rows if row["method"] == "pt" and row["spp"] == spp]
-        ours.append((spp, *(float(np.mean([row[key] for row in group])) for group in (guided, plain)
-                            for key in ("seconds_total", "relmse"))))
-    thesis = THESIS_GUIDING_TABLES[scene][2]
-    rows = []
-    for index in range(max(len(thesis), len(ours))):
-        size, values = list(thesis.items())[index] if index < len(thesis) else (None, None)
-        mine = ours[index] if index < len(ours) else None
-        rows.append((f"{f'{size}x{size}' if size else '-'} / {f'{width}x{height}' if mine else '-'}", [
-            f"{values[0]}" if values else "-", f"{mine[0]}" if mine else "-",
-            f"{values[1]}" if values else "-", f"{mine[1]:.3f}" if mine else "-",
-            f"{values[2]}" if values else "-", f"{mine[3]:.3f}" if mine else "-",
-            f"{values[1] / values[2]:.2f}" if values else "-", f"{mine[1] / mine[3]:.2f}" if mine else "-",
-            f"{mine[2]:.4g} / {mine[4]:.4g}" if mine else "-"]))
-    caption = thesis_table(table_number)["caption"]
-    section.tables = [Table(
-        caption=f"Table {table_number}: {caption} (ours: {scene}, map {grid_text(config.shape)}, mean over "
-                f"{len(config.seeds)} seeds; row i pairs the thesis's i-th image size with our i-th budget)",
-        columns=["thesis spp", "ours", "thesis SFT importance sampling s", "ours", "thesis PT s", "ours",
-                 "thesis SFT / PT time", "ours", "ours: relMSE guided / PT (same spp)"],
-        kinds=["thesis", "ours"] * 4 + ["ours"], rows=rows, label_header="image size (thesis / ours)")] + section.tables
+    # Table 6.2/6.3 beside our budgets: the single run's own table (report.comparison.table_6), first.
+    section.tables = table_6(result.rows, scene, config, methods=result.methods)[1:] + section.tables
+    _, budgets = guided_budgets(result.rows, result.methods)
+    ours = [(budget["spp"], budget["seconds"], budget["relmse"], budget["pt_seconds"], budget["pt_relmse"])
+            for budget in budgets]
     for claim in table_claims(table_number):
         section.verdicts.insert(0, judge(claim, ([mine[1] for mine in ours], [mine[3] for mine in ours]),
                                          subject=f"{scene} {width}x{height}").sentence)

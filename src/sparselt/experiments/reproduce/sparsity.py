@@ -6,22 +6,19 @@ from __future__ import annotations
 import numpy as np
 
 from ...report import Section, Table
-from ...thesis_findings import claim_values, judge, per_thesis_row, table_claims
-from ...thesis_numbers import thesis_table, thesis_value
+from ...thesis.findings import claim_values, judge, per_thesis_row, table_claims
+from ...thesis.numbers import thesis_table, thesis_value
+from ...thesis.scenes import CORNELL_BOX, PATH_SPACE_ROWS, SAN_MIGUEL, table_scene
 from ..sparsity_analysis import DEFAULT_FRACTIONS, analyze_signal, gini_table
 from .common import figure_claim, grid_text, sampled_signal, thesis_figure
 
-#: thesis scene of Tables 5.1/5.2 -> (our scene, kind)
-CHAPTER_5_SIGNALS = {
-    "Cornell": ("cornell-box", "path"), "Cornell Indirect Only": ("cornell-box", "path-indirect"),
-    "San Miguel": ("courtyard", "path"), "San Miguel Indirect Only": ("courtyard", "path-indirect")}
+#: thesis scene of Tables 5.1/5.2 -> (our scene, kind), from :mod:`sparselt.thesis.scenes`
+CHAPTER_5_SIGNALS = {label: (thesis_scene.scene, kind) for label, (thesis_scene, kind) in PATH_SPACE_ROWS.items()}
 #: Figures 5.2 and 5.3: the hard-thresholded signals (full transport) of each scene.
 THRESHOLDED_FIGURES = {"Cornell": "5.2", "San Miguel": "5.3"}
-#: thesis table -> (our scene, kind, lens, SSIM figure, thresholded figure)
-GAMMA_SIGNALS = {
-    "7.1": ("dof-sculptures", "dof", {}, "7.1", "7.3"),
-    "7.2": ("courtyard", "dof", {"aperture": 0.1, "focus_distance": 8.0}, "7.2", "7.4"),
-    "7.3": ("courtyard", "indirect", {}, "7.5", "7.6")}
+#: thesis table -> (our scene, kind, lens (:mod:`sparselt.thesis.scenes`), SSIM figure, thresholded figure)
+GAMMA_SIGNALS = {record.table: (record.scene, record.kind, record.lens(), *figures) for record, figures in (
+    (table_scene("7.1"), ("7.1", "7.3")), (table_scene("7.2"), ("7.2", "7.4")), (table_scene("7.3"), ("7.5", "7.6")))}
 GAMMAS = (1.0, 0.5, 0.25, 0.1, 0.05)
 #: a column of Tables 5.x / 7.x -> (domain, energy) of our Gini rows
 COLUMNS = {"Gini Magnitude": None, "Gini Energy": None, "Time": ("canonical", False),
@@ -97,10 +94,10 @@ def chapter_5(run):
 def _figure_5_1(run):
     """Figure 5.1: the two test scenes, rendered by Mitsuba's path tracer."""
     from ...images import reference_exposure, srgb_tonemap
-    from ...rendering.baseline import render_reference
+    from ..render import render_reference
     from ...report.plotting import pyplot
 
-    scenes = {"Cornell Box": "cornell-box", "San Miguel (courtyard)": "courtyard"}
+    scenes = {CORNELL_BOX.name: CORNELL_BOX.scene, f"{SAN_MIGUEL.name} ({SAN_MIGUEL.scene})": SAN_MIGUEL.scene}
     figure, axes = pyplot().subplots(1, len(scenes), figsize=(6 * len(scenes), 6.3))
     for axis, (title, scene) in zip(axes, scenes.items()):
         image, record = render_reference(scene, run.sub(f"render-{scene}"), spp=run.scale.render_spp,
@@ -138,7 +135,7 @@ def _figure_5_4(run, ssim):
 def chapter_7(run):
     """Tables 7.1-7.3 (Gini of depth-of-field and indirect signals under gamma mapping, eq. 7.1) and Figures
     7.1-7.6 (SSIM against gamma and fraction kept, thresholded images)."""
-    from ...thesis_numbers import _printed_number
+    from ...thesis.numbers import _printed_number
 
     shape, spp = run.scale.dof_shape, run.scale.dof_spp
     tables, verdicts, figures = [], [], []

@@ -1,7 +1,7 @@
 """What the thesis found, as data, and verdicts that compare our numbers with it (issue 21).
 
 ``sparselt/data/thesis_findings.json`` keeps, beside the transcribed tables of
-:mod:`sparselt.thesis_numbers`, the *direction* of each finding the thesis
+:mod:`sparselt.thesis.numbers`, the *direction* of each finding the thesis
 states about a table or a figure: a claim names its quantities (a table's
 column, optionally some rows, optionally divided by a constant; or a name our
 experiments measure) and what the thesis says of them:
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 
-from .thesis_numbers import thesis_table
+from .numbers import thesis_table
 
 FINDINGS_FILE = "thesis_findings.json"
 CLAIM_TYPES = ("trend", "greater", "above", "below")

@@ -1,0 +1,123 @@
+"""Gradient-domain path samples: base paths and their offsets one pixel away, traced and reduced in one launch.
+
+References
+----------
+M. Kettunen, M. Manzi, M. Aittala, J. Lehtinen, F. Durand and M. Zwicker,
+"Gradient-domain path tracing", ACM TOG 34(4), 2015, sections 3 and 5.1
+(the shift map; four neighbours).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .integrand import path_contribution, zero_nonfinite
+from .lanes import pss_vector, seeded_generator
+from .launch import launch
+from .readback import count_false, stacked
+from .runtime import modules
+
+GRADIENT_SHIFTS = {4: ((1, 0), (-1, 0), (0, 1), (0, -1)), 2: ((1, 0), (0, 1))}  # (dx, dy) per offset path
+GRADIENT_LANE_LIMIT = 1 << 23  # lanes (base and offset paths) per gradient-domain launch
+
+
+def gradient_paths(width, height, offsets):
+    """Paths traced per base sample per pixel of a ``width`` x ``height`` film: every base path, and every offset
+    of :data:`GRADIENT_SHIFTS` ``[offsets]`` that lands inside the film (``5 w h - 2 (w + h)`` for 4 offsets)."""
+    return width * height + sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS[offsets])
+
+
+def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
+    """Gradient-domain path samples: every base sample replayed at the neighbouring pixels, in one kernel.
+
+    Base sample ``i`` of pixel ``p`` is
+    :func:`~sparselt.rendering.mitsuba.pixels.sample_pixels`' sample ``i``
+    of ``p`` (the same random numbers). Its offset paths replay those
+    numbers with the film position moved by exactly one pixel, to each
+    neighbour of :data:`GRADIENT_SHIFTS` ``[offsets]`` (the shift map of
+    primary sample space: a translation, Jacobian 1; Kettunen et al. 2015,
+    3 and 5.1 use the 4 neighbours). An offset landing outside the film is
+    not traced (counted 0). The base and offset paths of a pass are one
+    Dr.Jit launch (lane ``((pixel * (1 + offsets)) + shift) * n + sample``),
+    reduced per pixel and shift inside it: nothing per sample leaves it.
+
+    Parameters
+    ----------
+    scene : MitsubaScene
+    layout : PathLayout
+    grid_shape : tuple of int
+        Signal grid (the cells are not used; the PSS vectors are those of
+        :func:`~sparselt.rendering.mitsuba.pixels.sample_pixels`).
+    spp : int
+        Base samples per pixel.
+    seed : int
+        Any non-negative integer (:func:`~sparselt.rendering.mitsuba.launch.fold_seed`).
+    offsets : {4, 2}
+        Neighbours per base sample: ``+x, -x, +y, -y`` or ``+x, +y``.
+
+    Returns
+    -------
+    sums : ndarray, shape (height, width, 1 + offsets, 3), float64
+        Per base pixel: the sum over its ``spp`` base samples of the base
+        path's contribution (index 0) and of each offset path's (index
+        ``1 + k`` for shift ``k``); 0 for offsets outside the film.
+    camera_emission : ndarray, shape (height, width, 1 + offsets, 3), float64
+        The same sums of the part of each contribution that is emission
+        seen directly by the camera ray (0 where the layout does not count
+        it), reduced in the same launch.
+    nonfinite : int
+        Paths (base or offset, inside the film) whose value was NaN or
+        infinite, counted as 0.
+    """
+    if offsets not in GRADIENT_SHIFTS:
+        raise ValueError(f"offsets must be one of {sorted(GRADIENT_SHIFTS)}, got {offsets!r}")
+    spp = int(spp)
+    if spp < 1:
+        raise ValueError(f"spp must be >= 1, got {spp}")
+    width, height = scene.width, scene.height
+
+    def work(folded_seed):
+        mi, dr = modules()
+        shifts = ((0, 0),) + GRADIENT_SHIFTS[offsets]
+        paths_per_base = len(shifts)
+        pixels = width * height
+        per_launch = max(1, min(spp, GRADIENT_LANE_LIMIT // (pixels * paths_per_base)))
+        shift_x = mi.Int32([dx for dx, _ in shifts])
+        shift_y = mi.Int32([dy for _, dy in shifts])
+        outside_per_sample = paths_per_base * pixels - gradient_paths(width, height, offsets)
+        sums = np.zeros((pixels * paths_per_base, 3))
+        emission_sums = np.zeros((pixels * paths_per_base, 3))
+        nonfinite = 0
+        for first in range(0, spp, per_launch):
+            count = min(per_launch, spp - first)
+            index = dr.arange(mi.UInt32, pixels * paths_per_base * count)
+            samples_per_block = dr.opaque(mi.UInt32, count)
+            block = index // samples_per_block
+            shift = block % dr.opaque(mi.UInt32, paths_per_base)
+            pixel = block // dr.opaque(mi.UInt32, paths_per_base)
+            generator = seeded_generator(pixel, index % samples_per_block + dr.opaque(mi.UInt32, first), folded_seed, 0)
+            film_width = dr.opaque(mi.Int32, width)
+            target_x = mi.Int32(pixel % mi.UInt32(film_width)) + dr.gather(mi.Int32, shift_x, shift)
+            target_y = mi.Int32(pixel // mi.UInt32(film_width)) + dr.gather(mi.Int32, shift_y, shift)
+            inside = ((target_x >= 0) & (target_x < film_width) & (target_y >= 0)
+                      & (target_y < dr.opaque(mi.Int32, height)))
+            samples, _ = pss_vector(layout, grid_shape, generator, mi.UInt32(dr.select(inside, target_x, 0)),
+                                    mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
+            recorded = {}
+            value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded), inside)
+            # A layout that counts no emission seen directly leaves its sums 0 without reducing zeros.
+            channels = [value.x, value.y, value.z]
+            if layout.count_camera_emission:
+                emission = dr.select(finite, recorded["camera_emission"], 0.0)
+                channels += [emission.x, emission.y, emission.z]
+            dr.eval(finite, *channels)
+            nonfinite += count_false(finite) - count * outside_per_sample
+            reduced = [dr.block_sum(channel, count) for channel in channels]
+            dr.eval(reduced)
+            sums += stacked(reduced[:3])
+            if layout.count_camera_emission:
+                emission_sums += stacked(reduced[3:])
+        shape = (height, width, paths_per_base, 3)
+        return sums.reshape(shape), emission_sums.reshape(shape), nonfinite
+
+    return launch(work, seed, path_samples=spp * gradient_paths(width, height, offsets))

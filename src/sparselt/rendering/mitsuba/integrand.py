@@ -1,0 +1,160 @@
+"""The integrand: the path contribution ``f(S(u))`` of explicit primary-sample-space vectors ``u``.
+
+Every estimator of :mod:`sparselt.rendering.mitsuba` evaluates
+:func:`path_contribution` on the vectors its lanes draw
+(:mod:`~sparselt.rendering.mitsuba.lanes`), laid out by a
+:class:`~sparselt.rendering.layout.PathLayout`; the per-sample auxiliary
+outputs (:data:`AUXILIARY_QUANTITIES`) come from the same kernel.
+
+References
+----------
+Thesis 2.1.6 and 3.2.2 (the path integral in primary sample space); E. Veach,
+"Robust Monte Carlo methods for light transport simulation" (1997), 9.2
+(multiple importance sampling, the power heuristic).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .runtime import modules
+
+#: Per-sample quantities :meth:`MitsubaScene.sample_pixels` can return beside the path contributions.
+#: ``primary_depth``: camera-space depth (along the optical axis) of the camera ray's hit, ``inf`` for a miss;
+#: ``primary_normal`` (3): its shading normal; ``diffuse_albedo`` (3): its BSDF's diffuse reflectance;
+#: ``secondary_distance``: length of the ray sampled at the first vertex to its hit, ``inf`` for none;
+#: ``secondary_diffuse``: that ray was sampled from a diffuse lobe; ``lens_u``, ``lens_v``: the lens sample
+#: in primary sample space (thin lens only); ``camera_emission`` (3): the part of the contribution that is
+#: emission seen directly by the camera ray (0 where the layout does not count it).
+AUXILIARY_QUANTITIES = ("primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance",
+                        "secondary_diffuse", "lens_u", "lens_v", "camera_emission")
+
+
+def path_contribution(scene, layout, samples, auxiliary=None):
+    """Radiance of the paths defined by explicit PSS samples.
+
+    Parameters
+    ----------
+    scene : MitsubaScene
+        Its Mitsuba scene, sensor and camera-ray mode.
+    layout : PathLayout
+        Which vertices sample lights and which emission hits count (see
+        :mod:`sparselt.rendering.layout`).
+    samples : dict
+        Each name in ``layout.dimensions`` -> a ``mi.Float`` per lane.
+    auxiliary : dict, optional
+        Receives the per-sample quantities of :data:`AUXILIARY_QUANTITIES`
+        computed in the same kernel (the frequency-analysis filters' inputs,
+        Mehta et al. 2012-2014).
+
+    Returns
+    -------
+    mi.Color3f
+        The contribution of each lane.
+
+    Notes
+    -----
+    The estimator follows Mitsuba's ``path`` integrator (MIS with the power
+    heuristic between next-event estimation and BSDF sampling) without
+    Russian roulette.
+    """
+    mi, dr = modules()
+    context = mi.BSDFContext()
+    position = mi.Point2f(samples["x"], samples["y"])
+    aperture = mi.Point2f(samples["lens_u"], samples["lens_v"]) if layout.thin_lens else mi.Point2f(0.5, 0.5)
+    ray, ray_weight = scene.sensor.sample_ray(time=0.0, sample1=0.5, sample2=position, sample3=aperture)
+    world = scene.scene
+    throughput = mi.Color3f(ray_weight)
+    result = mi.Color3f(0.0)
+    active = mi.Bool(True)
+
+    interaction = world.ray_intersect(ray, mi.RayFlags.All, scene.coherent_camera_rays, active)
+    if auxiliary is not None:
+        _record_primary(scene.sensor, auxiliary, interaction, samples, layout)
+    if layout.count_camera_emission:
+        result += throughput * interaction.emitter(world).eval(interaction, active)
+        if auxiliary is not None:
+            auxiliary["camera_emission"] = mi.Color3f(result)
+
+    for index, plan in enumerate(layout.vertices, start=1):
+        active &= interaction.is_valid()
+        bsdf = interaction.bsdf(ray)
+
+        if plan.next_event:
+            light_sample = mi.Point2f(samples[f"light{index}_u"], samples[f"light{index}_v"])
+            active_light = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+            direction_sample, emitter_weight = world.sample_emitter_direction(interaction, light_sample, True,
+                                                                              active_light)
+            active_light &= direction_sample.pdf != 0.0
+            local_direction = interaction.to_local(direction_sample.d)
+            bsdf_value, bsdf_pdf = bsdf.eval_pdf(context, interaction, local_direction, active_light)
+            weight = dr.select(direction_sample.delta, 1.0, power_heuristic(direction_sample.pdf, bsdf_pdf))
+            result += dr.select(active_light, throughput * weight * bsdf_value * emitter_weight, 0.0)
+
+        direction = mi.Point2f(samples[f"bsdf{index}_u"], samples[f"bsdf{index}_v"])
+        bsdf_sample, bsdf_weight = bsdf.sample(context, interaction, samples[f"lobe{index}"], direction, active)
+        throughput = dr.select(active, throughput * bsdf_weight, 0.0)
+        active &= dr.max(throughput) > 0.0
+        ray = interaction.spawn_ray(interaction.to_world(bsdf_sample.wo))
+        next_interaction = world.ray_intersect(ray, active)
+        if auxiliary is not None and index == 1:
+            hit = active & next_interaction.is_valid()
+            auxiliary["secondary_distance"] = dr.select(hit, next_interaction.t, dr.inf)
+            auxiliary["secondary_diffuse"] = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Diffuse)
+
+        if plan.count_emission_hit:
+            emitter_sample = mi.DirectionSample3f(world, si=next_interaction, ref=interaction)
+            emission = emitter_sample.emitter.eval(next_interaction, active)
+            if plan.next_event:
+                delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
+                light_pdf = world.pdf_emitter_direction(interaction, emitter_sample, active & ~delta)
+                emission *= power_heuristic(bsdf_sample.pdf, light_pdf)
+            result += dr.select(active, throughput * emission, 0.0)
+        interaction = next_interaction
+    return result
+
+
+def _record_primary(sensor, auxiliary, interaction, samples, layout):
+    """The camera ray's hit: camera-space depth, shading normal, diffuse reflectance; the lens sample."""
+    mi, dr = modules()
+    origin, forward = camera_axis(sensor)
+    valid = interaction.is_valid()
+    offset = interaction.p - mi.Point3f(*origin)
+    depth = offset.x * forward[0] + offset.y * forward[1] + offset.z * forward[2]
+    auxiliary["primary_depth"] = dr.select(valid, depth, dr.inf)
+    auxiliary["primary_normal"] = dr.select(valid, interaction.sh_frame.n, 0.0)
+    bsdf = interaction.bsdf()
+    auxiliary["diffuse_albedo"] = dr.select(valid, mi.Color3f(bsdf.eval_diffuse_reflectance(interaction, valid)),
+                                            0.0)
+    if layout.thin_lens:
+        auxiliary["lens_u"] = samples["lens_u"]
+        auxiliary["lens_v"] = samples["lens_v"]
+    auxiliary["camera_emission"] = mi.Color3f(dr.zeros(mi.Float, dr.width(depth)))
+    # Defaults for quantities a path without a first bounce never sets.
+    auxiliary["secondary_distance"] = dr.full(mi.Float, dr.inf, dr.width(depth))
+    auxiliary["secondary_diffuse"] = dr.full(mi.Bool, False, dr.width(depth))
+
+
+def camera_axis(sensor):
+    """World-space position of a loaded sensor and its unit optical axis (local +z)."""
+    matrix = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
+    forward = matrix[:3, 2] / np.linalg.norm(matrix[:3, 2])
+    return tuple(float(v) for v in matrix[:3, 3]), tuple(float(v) for v in forward)
+
+
+def power_heuristic(pdf_a, pdf_b):
+    """Veach's power heuristic (exponent 2) weight of the strategy with density ``pdf_a``; 0 where undefined."""
+    _, dr = modules()
+    a2 = dr.square(pdf_a)
+    b2 = dr.square(pdf_b)
+    weight = a2 / (a2 + b2)
+    return dr.select(dr.isfinite(weight), weight, 0.0)
+
+
+def zero_nonfinite(value, valid=None):
+    """``value`` with NaN or infinite lanes (and lanes not ``valid``) set to 0, and the mask of kept lanes."""
+    _, dr = modules()
+    finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
+    if valid is not None:
+        finite &= valid
+    return dr.select(finite, value, 0.0), finite
