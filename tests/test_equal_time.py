@@ -236,7 +236,7 @@ def _rung_times(per_spp, intercept=0.0, seeds=2):
 def test_every_rung_of_the_ladder_is_run_down_to_one_spp():
     """The downward ladder once listed 1 spp without running it (a cell with no repeats: compare failed at the
     end with timing_repeats=1 when a method was faster than PT at 2 spp). Times: 0.01 s per spp."""
-    from sparselt.experiments.compare import ladder_search
+    from sparselt.experiments.comparison_cells import ladder_search
 
     run_rung, ran = _rung_times(0.01, seeds=1)
     ladder = ladder_search(run_rung, [0.005, 0.09], smallest_budget=4, maximum_spp=64)  # 0.005 s: below 1 spp's
@@ -246,7 +246,7 @@ def test_every_rung_of_the_ladder_is_run_down_to_one_spp():
 
 
 def test_the_ladder_doubles_from_half_the_smallest_budget_until_it_passes_every_other_time():
-    from sparselt.experiments.compare import ladder_search
+    from sparselt.experiments.comparison_cells import ladder_search
 
     run_rung, ran = _rung_times(0.01, intercept=0.02)
     ladder = ladder_search(run_rung, [0.1, 0.5, 0.3], smallest_budget=10, maximum_spp=4096)
@@ -256,7 +256,7 @@ def test_the_ladder_doubles_from_half_the_smallest_budget_until_it_passes_every_
 
 
 def test_the_ladder_runs_two_rungs_at_least_and_stops_at_its_cap():
-    from sparselt.experiments.compare import ladder_search
+    from sparselt.experiments.comparison_cells import ladder_search
 
     run_rung, _ = _rung_times(0.01)
     assert ladder_search(run_rung, [0.0001], smallest_budget=40, maximum_spp=4096)["spps"][-2:] == [20, 40]
@@ -267,7 +267,7 @@ def test_the_ladder_runs_two_rungs_at_least_and_stops_at_its_cap():
 
 def test_the_ladder_resumes_from_a_ladder_already_run():
     """The second search (after the rounds, medians moved) starts from the top rung and adds rungs above it."""
-    from sparselt.experiments.compare import ladder_search
+    from sparselt.experiments.comparison_cells import ladder_search
 
     run_rung, ran = _rung_times(0.01)
     ladder = ladder_search(run_rung, [0.5], smallest_budget=8, maximum_spp=4096, start=[4, 8, 16, 32])

@@ -9,7 +9,8 @@ import sys
 # Constants live where they are defined; these modules import neither Mitsuba nor Dr.Jit.
 from .experiments.compare import ComparisonConfig
 from .experiments.sparsity_analysis import DEFAULT_GAMMAS
-from .rendering.acquire import DEFAULT_MAX_DEPTH, DEFAULT_SPP, NONFINITE_POLICIES
+from .rendering.acquire import NONFINITE_POLICIES, AcquisitionConfig
+from .rendering.setup import DEFAULT_MAX_DEPTH
 from .rendering.layout import KINDS
 from .rendering.setup import DEFAULT_VARIANT, SUPPORTED_VARIANTS
 
@@ -171,12 +172,14 @@ def build_parser():
     group = sample.add_mutually_exclusive_group(required=True)
     group.add_argument("--shape", type=_shape, help="resolution of each axis, e.g. 64,64,8,8 (image plane first)")
     group.add_argument("--preset", choices=("thesis",), help="thesis resolutions: path 100x100x4^8, dof/indirect 250x250x16x16")
-    sample.add_argument("--spp", type=int, default=DEFAULT_SPP, help="jittered samples per cell (default: %(default)s)")
-    sample.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    sample.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path, Mitsuba convention (default: %(default)s)")
+    defaults = _defaults(AcquisitionConfig)
+    sample.add_argument("--spp", type=int, default=defaults["spp"], help="jittered samples per cell (default: %(default)s)")
+    sample.add_argument("--seed", type=int, default=defaults["seed"], help="random seed (default: %(default)s)")
+    sample.add_argument("--max-depth", type=int, default=defaults["max_depth"],
+                        help="longest path, Mitsuba convention (default: %(default)s)")
     sample.add_argument("--out", required=True, help="signal folder to write")
     sample.add_argument("--overwrite", action="store_true", help="replace an existing signal")
-    sample.add_argument("--nonfinite", choices=NONFINITE_POLICIES, default=NONFINITE_POLICIES[0],
+    sample.add_argument("--nonfinite", choices=NONFINITE_POLICIES, default=defaults["nonfinite"],
                         help="NaN/Inf samples: stop with an error (default) or count them and use 0")
     sample.add_argument("--chunk-cells", type=int, default=None, help="cells per chunk (default: about 4M samples)")
     sample.add_argument("--no-progress", action="store_true", help="hide the progress bar")

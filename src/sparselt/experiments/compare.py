@@ -17,7 +17,7 @@ Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
     results.csv             one row per (method, spp, seed): RESULT_COLUMNS first
     cells/                  one JSON record per finished (method, spp, seed), with the
                             method's resolved options: what a rerun resumes from
-    repeats/                each cell's timing repeats so far (the rounds of _CellRunner):
+    repeats/                each cell's timing repeats so far (the rounds of CellRunner):
                             a run interrupted between rounds resumes from them
     images/                 EXR + PNG + npy per method, spp and seed, and the reference
     quality_vs_time.png     SSIM and relMSE against seconds (Figures 8.1/8.3)
@@ -39,39 +39,29 @@ holding files sparselt did not write is always refused.
 from __future__ import annotations
 
 import math
-import sys
 import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from ..analysis.metrics import (
-    contrast_ratio,
-    flip_error,
-    image_ssim,
-    luminance_ratio,
     reference_exposure,
-    relative_mean_squared_error,
 )
 from ..checks import check_integer
-from ..images import luminance
-from ..methods import TIME_PHASES, Budget, ComparisonContext, MethodSetup, baseline_name, get_method, run_timed
-from ..methods.variants import parse_method_variant, variant_file_name
-from ..methods.contract import check_result
+from ..methods import ComparisonContext, MethodSetup, baseline_name, get_method
+from ..methods.variants import parse_method_variant
 from ..provenance import environment_record
-from ..rendering.mitsuba import MitsubaScene
 from ..rendering.baseline import METHOD_SEED_LIMIT, REFERENCE_SEED_LIMIT, check_wavefront, reference_relmse_floor
 from ..rendering.layout import KINDS
-from ..rendering.scenes import SceneSpec
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
 from ..report.comparison import results_table, write_comparison_outputs
 from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS, in_comparison_order
+from .comparison_cells import IMAGES, CellRunner, cell_name
 from .protocol import Experiment, run_experiment
-from .equal_time import NOISY_TIMING_RATIO, add_equal_time_columns, summarize
+from .quality import RELMSE_EPSILON, caustic_mask
+from .equal_time import add_equal_time_columns, summarize
 
-RELMSE_EPSILON = 0.01
 CONFIG_FILE = "compare.json"
-IMAGES = "images"
 # What makes two comparisons the same: everything but the lists a rerun may extend.
 EXTENSIBLE = ("methods", "spps", "seeds")
 #: Bounds checked before any work: a reference beyond them would run for days (2-core machine, ~5 M samples/s).
@@ -116,7 +106,7 @@ class ComparisonConfig:
         ranges (``sparselt methods NAME``); :meth:`resolved_options` checks
         them all before anything runs.
     timing_repeats : int
-        Runs of every cell; its time is their median (see :class:`_CellRunner`).
+        Runs of every cell; its time is their median (see :class:`CellRunner`).
     pt_ladder_max_spp : int
         The largest spp of PT's automatic ladder (a row whose time it does
         not reach has no equal-time value, and says so).
@@ -376,68 +366,7 @@ def check_reference_spp(resolution, spp):
                          f"{MAXIMUM_REFERENCE_SAMPLES // (resolution[0] * resolution[1])} at this resolution)")
 
 
-def cell_name(method, spp, seed):
-    """The file name of a cell: its row (a method name, or a variant written file-safe by
-    :func:`~sparselt.methods.variants.variant_file_name`), spp and seed."""
-    return f"{variant_file_name(method)}_spp{spp}_seed{seed}"
 
-
-SPECULAR_BSDFS = ("conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric", "plastic",
-                  "roughplastic")
-
-
-def _without_specular(value):
-    """A scene dictionary whose specular and glossy BSDFs are replaced by a grey diffuse one."""
-    if isinstance(value, dict):
-        if value.get("type") in SPECULAR_BSDFS:
-            return {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
-        return {key: _without_specular(item) for key, item in value.items()}
-    return value
-
-
-def caustic_mask(loaded, reference, *, spp, max_depth, seed=0, fraction=0.3):
-    """Pixels lit by caustics: where removing every specular BSDF darkens a surface that stays the same.
-
-    The scene is rendered again with its conductors and dielectrics made
-    diffuse (no caustic can form) at ``spp``; a pixel is in the mask when the
-    surface it sees is unchanged (same albedo in both scenes, so not one of
-    the replaced objects) and the caustic-free render is darker than the
-    reference by more than ``fraction`` of the reference. Only the reference
-    and the two scenes enter it; no method's image does. Built-in scenes
-    only (a scene file's BSDFs are not rewritten).
-    """
-    spec = loaded.spec
-    if spec.objects is None:
-        raise ValueError("the caustic mask needs a built-in scene (a scene file's materials are not rewritten)")
-    plain = SceneSpec(name=spec.name + "-diffuse", description="specular BSDFs made diffuse",
-                      objects=_without_specular(spec.objects), camera=spec.camera, lens_overrides=spec.lens_overrides,
-                      hide_emitters=spec.hide_emitters)
-    other = MitsubaScene(plain, (loaded.width, loaded.height))
-    without, _ = other.render_path(spp, max_depth, seed)
-    albedo, _ = loaded.render_aovs(16, seed)
-    albedo_plain, _ = other.render_aovs(16, seed)
-    same_surface = np.abs(luminance(albedo["albedo"]) - luminance(albedo_plain["albedo"])) < 0.02
-    level, level_without = luminance(reference), luminance(without)
-    return same_surface & (level - level_without > fraction * level) & (level > 0)
-
-
-def quality(image, reference, mask=None):
-    """SSIM (the project's HDR convention), relMSE (epsilon 0.01), HDR-FLIP, luminance and contrast ratios.
-
-    With a boolean ``mask`` (height, width), also ``relmse_caustic``: the
-    relMSE over the masked pixels only.
-    """
-    record = {
-        "ssim": image_ssim(image, reference),
-        "flip": flip_error(image, reference),
-        "relmse": relative_mean_squared_error(image, reference, epsilon=RELMSE_EPSILON),
-        "luminance_ratio": luminance_ratio(image, reference),
-        "contrast_ratio": contrast_ratio(image, reference),
-    }
-    if mask is not None:
-        record["relmse_caustic"] = (relative_mean_squared_error(image[mask][None], reference[mask][None],
-                                                                epsilon=RELMSE_EPSILON) if mask.any() else "")
-    return record
 
 
 def compare(config, out, *, overwrite=False, progress=True, cache_directory=None):
@@ -491,7 +420,7 @@ class _LoadedComparison:
 class ComparisonExperiment(Experiment):
     """``sparselt compare`` as an experiment of the protocol (:mod:`sparselt.experiments.protocol`).
 
-    Its cells are the (row, spp, seed) cells of :class:`_CellRunner`, timed
+    Its cells are the (row, spp, seed) cells of :class:`CellRunner`, timed
     ``timing_repeats`` times in rounds over every cell (so it overrides
     :meth:`run_cells`), after the reference; its report is every output of
     :func:`~sparselt.report.comparison.write_comparison_outputs` and ``compare.json``.
@@ -567,7 +496,7 @@ class ComparisonExperiment(Experiment):
         floor = reference_relmse_floor(reference, reference_record["variance"], epsilon=RELMSE_EPSILON)
         record["reference_relmse_floor"] = floor if math.isfinite(floor) else None
 
-        runner = _CellRunner(folder, state.context, config, reference, mask, exposure, progress,
+        runner = CellRunner(folder, state.context, config, reference, mask, exposure, progress,
                              floor=record["reference_relmse_floor"], rows_so_far=tuple(record["config"]["methods"]))
         outcome = runner.run_all(list(methods.values()), methods[baseline_name()])
         record["warm_up_seconds"].update(outcome.warm_up_seconds)
@@ -611,265 +540,6 @@ class ComparisonExperiment(Experiment):
         return {"seconds": result.seconds}
 
 
-def ladder_search(run_rung, others, *, smallest_budget, maximum_spp, start=None):
-    """PT's automatic ladder: the rungs (spp) whose times cover every other method's time.
-
-    PT runs at spp = s0, 2 s0, 4 s0, ... (s0 half the smallest budget, at
-    least 1) until its time passes every other method's time (and at least
-    two rungs ran) or the next rung would pass ``maximum_spp``; then at
-    s0 / 2, s0 / 4, ... down to 1 spp while its smallest rung is slower than
-    the fastest method: nothing is extrapolated at either end
-    (:class:`~sparselt.experiments.equal_time.BaselineFit` fits over the
-    rungs).
-
-    Parameters
-    ----------
-    run_rung : callable
-        ``run_rung(spp) -> sequence of float``: runs (or reads) PT at
-        ``spp`` for every seed and returns its times; its median is the rung's time.
-    others : sequence of float
-        Every other method's cell times.
-    smallest_budget : int
-        The comparison's smallest spp.
-    maximum_spp : int
-        The cap (:attr:`ComparisonConfig.pt_ladder_max_spp`).
-    start : sequence of int, optional
-        A ladder already run: the search resumes from its last rung.
-
-    Returns
-    -------
-    dict
-        ``spps`` (sorted rungs), ``target_seconds`` (the slowest other
-        time), ``reached_seconds`` (the top rung's time), ``capped``,
-        ``max_spp``, ``fastest_seconds`` (the fastest other time).
-    """
-    target = max(others, default=0.0)
-    fastest = min(others, default=math.inf)
-    steps = list(start or [])
-    spp = steps[-1] if steps else max(1, smallest_budget // 2)
-    capped = False
-    while True:
-        reached = float(np.median(run_rung(spp)))
-        if spp not in steps:
-            steps.append(spp)
-        if reached > target and len(steps) >= 2:
-            break
-        if 2 * spp > maximum_spp:
-            capped = True
-            break
-        spp *= 2
-    # Downwards too, while a method is faster than PT's smallest rung: nothing is extrapolated at either end.
-    steps.sort()
-    spp = steps[0]
-    lowest = float(np.median(run_rung(spp)))
-    while spp > 1 and lowest > fastest:
-        spp //= 2
-        steps.insert(0, spp)
-        lowest = float(np.median(run_rung(spp)))  # every rung listed is run (1 spp was once listed unrun)
-    return {"spps": steps, "target_seconds": target, "reached_seconds": reached, "capped": capped,
-            "max_spp": maximum_spp, "fastest_seconds": fastest}
-
-
-@dataclass(frozen=True)
-class RunOutcome:
-    """What :meth:`_CellRunner.run_all` measured besides the cells it recorded in the folder.
-
-    Attributes
-    ----------
-    ladder : dict or None
-        PT's ladder (:func:`ladder_search`), None without another method.
-    warm_up_seconds : dict
-        ``{row: seconds}`` of each row warmed up by this command.
-    method_seconds : float
-        Wall seconds in the methods (warm-ups and runs).
-    metric_seconds : float
-        Harness seconds computing the first repeat's metrics.
-    """
-
-    ladder: dict | None
-    warm_up_seconds: dict
-    method_seconds: float
-    metric_seconds: float
-
-
-class _CellRunner:
-    """Runs a comparison's cells: each (row, spp, seed) ``timing_repeats`` times, in rounds, and PT's ladder.
-
-    A row is a method instance (a method name or a variant, its
-    :attr:`~sparselt.methods.base.Method.label`). A repeat re-runs the whole
-    method with the same budget (a method gives the same image for the same
-    seed, which is checked): re-timing the same computation would leave out
-    exactly what varies between runs (the renderer's launches, allocation,
-    caches). The time of a cell is the median of its repeats' totals, its
-    phases those of the median run, and min and max are recorded.
-
-    The repeats run in **rounds**, not back to back: round 1 runs every
-    method's cells once and then PT's ladder (whose extent follows the
-    methods' round-1 times); rounds 2, 3, ... run every cell again, PT's
-    rungs included, in reverse order on even rounds. A shared machine's speed
-    drifts over minutes (two demo runs measured the methods 16-45% slower
-    and PT 10-18% slower in the second: PT, timed last, saw another
-    machine); in rounds every cell samples the whole run's conditions, and
-    the alternating order cancels a linear drift. Each repeat is recorded
-    as it finishes (``repeats/NAME.json``), so an interrupted run resumes
-    within a round; a cell enters ``cells/`` only with all its repeats.
-
-    ``rows_so_far`` are the rows of every run of the folder (a rerun's union):
-    the ladder covers the cells an earlier run finished too.
-    """
-
-    def __init__(self, folder, context, config, reference, mask, exposure, progress, *, floor, rows_so_far):
-        self.folder, self.context, self.config = folder, context, config
-        self.reference, self.mask, self.exposure, self.progress = reference, mask, exposure, progress
-        self.floor = floor  # the reference's relMSE floor, or None when unknown (a one-pass reference)
-        self.rows_so_far = tuple(rows_so_far)
-        self.seconds = 0.0
-        self.warm_up_seconds = {}
-        self.metric_seconds = 0.0
-
-    # ----------------------------------------------------------------- the plan
-    def run_all(self, methods, baseline):
-        """Every cell of ``methods`` (the baseline's at the run's budgets and on its ladder).
-
-        Returns
-        -------
-        RunOutcome
-        """
-        config = self.config
-        budgets = [(spp, seed) for seed in config.seeds for spp in config.spps]
-        plan = [(method, spp, seed) for method in methods if method.label != baseline.label
-                and method.label in config.methods for spp, seed in budgets]
-        if baseline.label in config.methods:
-            plan += [(baseline, spp, seed) for spp, seed in budgets]
-        for method, spp, seed in plan:  # round 1
-            self._repeat(method, spp, seed, 1)
-        ladder = None
-        if any(method.label != baseline.label for method in methods):
-            ladder = self._ladder(lambda spp: [self._repeat(baseline, spp, seed, 1) for seed in config.seeds],
-                                  self._other_times(baseline, plan))
-            plan += [(baseline, spp, seed) for spp in ladder["spps"] for seed in config.seeds
-                     if spp not in config.spps or baseline.label not in config.methods]
-        for round_number in range(2, config.timing_repeats + 1):
-            if self.progress:
-                print(f"compare: timing round {round_number} of {config.timing_repeats} ({len(plan)} cells)",
-                      file=sys.stderr)
-            for method, spp, seed in (reversed(plan) if round_number % 2 == 0 else plan):
-                self._repeat(method, spp, seed, round_number)
-        for method, spp, seed in plan:
-            self._finish(method, spp, seed)
-        if ladder is not None:
-            # The medians may have moved from round 1's times: extend the ladder (each new rung with all its
-            # repeats) until it covers them again.
-            ladder = self._ladder(lambda spp: [self._finished(baseline, spp, seed) for seed in config.seeds],
-                                  self._other_times(baseline, plan), start=ladder["spps"])
-        return RunOutcome(ladder=ladder, warm_up_seconds=dict(self.warm_up_seconds), method_seconds=self.seconds,
-                          metric_seconds=self.metric_seconds)
-
-    def _ladder(self, run_rung, others, start=None):
-        return ladder_search(run_rung, others, smallest_budget=min(self.config.spps),
-                             maximum_spp=self.config.pt_ladder_max_spp, start=start)
-
-    def _other_times(self, baseline, plan):
-        """The times of every other row's cell: this run's plan and those an earlier run of the folder
-        finished (its union of budgets), which the ladder must cover too."""
-        times = {cell_name(method.label, spp, seed): self._time(method.label, spp, seed)
-                 for method, spp, seed in plan if method.label != baseline.label}
-        for name, done in self.folder.cells().items():
-            if done["row"]["method"] != baseline.label and done["row"]["method"] in self.rows_so_far:
-                times.setdefault(name, done["row"]["seconds_total"])
-        return list(times.values())
-
-    # ----------------------------------------------------------------- one cell
-    def _repeats(self, name):
-        return self.folder.repeats(name)
-
-    def _time(self, row, spp, seed):
-        """The cell's time so far: the median of its repeats (the finished cell's time when it is done)."""
-        name = cell_name(row, spp, seed)
-        done = self.folder.cell(name)
-        if done is not None:
-            return done["row"]["seconds_total"]
-        return float(np.median(self._repeats(name)["totals"]))
-
-    def _repeat(self, method, spp, seed, round_number):
-        """Run repeat ``round_number`` of a cell unless it is done; return the cell's time so far."""
-        row = method.label
-        name = cell_name(row, spp, seed)
-        done = self.folder.cell(name) is not None
-        partial = None if done else self._repeats(name)
-        if done or (partial is not None and len(partial["totals"]) >= round_number):
-            return self._time(row, spp, seed)
-        context = self.context
-        if row not in self.warm_up_seconds:
-            warm_start = time.perf_counter()
-            method.warm_up(context)
-            self.warm_up_seconds[row] = time.perf_counter() - warm_start
-            self.seconds += self.warm_up_seconds[row]
-        budget = Budget(spp=spp, seed=seed)
-        run_start = time.perf_counter()
-        result = run_timed(method, context, budget)
-        wall = time.perf_counter() - run_start
-        self.seconds += wall
-        seconds = check_result(method, result, context, budget, wall_seconds=wall)
-        if partial is None:
-            metrics_start = time.perf_counter()
-            cells_row = _row(row, spp, seed, result, seconds, self.reference, self.mask)
-            self.metric_seconds += time.perf_counter() - metrics_start  # harness time, never a method's
-            self.folder.write_image(f"{IMAGES}/{name}", result.image, exposure=self.exposure)
-            partial = {"row": cells_row, "details": result.details, "phases": [], "totals": [], "wall_seconds": [],
-                       "repeat_image_difference": 0.0}
-            if self.progress:
-                print(f"compare: {row:18s} spp {spp:5d} seed {seed}: {cells_row['seconds_total']:7.3f} s "
-                      f"(repeat 1 of {self.config.timing_repeats}), SSIM {cells_row['ssim']:.3f}, relMSE "
-                      f"{cells_row['relmse']:.4g}, luminance x{cells_row['luminance_ratio']:.3f}", file=sys.stderr)
-        else:
-            first = np.load(self.folder.path_of(f"{IMAGES}/{name}.npy"))
-            scale = float(np.abs(first).max()) or 1.0
-            difference = float(np.abs(result.image.astype(np.float64) - first).max()) / scale
-            # Atomic accumulation (the global guided mode splats samples into pixels from many threads) sums in
-            # another order each run: equal to float32 rounding, not bitwise. Anything larger is a breach.
-            if difference > 1e-4:
-                raise ValueError(f"method {row!r} gave another image when run again with the same seed "
-                                 f"({seed}) at spp {spp} (largest difference {difference:.2g} of the image's "
-                                 "maximum): a method must be a function of its budget")
-            partial["repeat_image_difference"] = max(partial["repeat_image_difference"], difference)
-        partial["phases"].append(seconds)
-        partial["totals"].append(sum(seconds.values()))
-        partial["wall_seconds"].append(wall)
-        self.folder.record_repeat(name, partial)
-        return float(np.median(partial["totals"]))
-
-    def _finished(self, method, spp, seed):
-        """Run a cell's remaining repeats back to back (a rung added after the rounds), finish it; its time."""
-        for round_number in range(1, self.config.timing_repeats + 1):
-            self._repeat(method, spp, seed, round_number)
-        return self._finish(method, spp, seed)
-
-    def _finish(self, method, spp, seed):
-        """Record a cell whose repeats are all in: median time, min, max, the median run's phases."""
-        name = cell_name(method.label, spp, seed)
-        done = self.folder.cell(name)
-        if done is not None:
-            return done["row"]["seconds_total"]
-        partial = self._repeats(name)
-        totals = partial["totals"]
-        median = sorted(range(len(totals)), key=totals.__getitem__)[len(totals) // 2]
-        seconds = partial["phases"][median]
-        row = dict(partial["row"], **{f"seconds_{phase}": seconds[phase] for phase in TIME_PHASES})
-        if self.floor is not None:
-            row.update(reference_relmse_floor=self.floor, relmse_debiased=row["relmse"] - self.floor,
-                       reference_limited=bool(row["relmse"] < 2 * self.floor))
-        row.update(seconds_total=float(np.median(totals)), seconds_total_min=min(totals),
-                   seconds_total_max=max(totals), timing_repeats=len(totals),
-                   timing_noisy=bool(max(totals) > NOISY_TIMING_RATIO * min(totals)))
-        self.folder.record_cell(name, {"row": row, "details": partial["details"], "seconds": seconds,
-                                       "repeat_totals": totals,
-                                       "repeat_image_difference": partial["repeat_image_difference"],
-                                       "options": method.options.record(),
-                                       "wall_seconds": partial["wall_seconds"]})
-        return row["seconds_total"]
-
-
 def method_record(method):
     """What ``compare.json`` and the reports know of a row's method: description, roles, source, resolved options
     (and, for a variant, the method it is a variant of: ``method``)."""
@@ -880,14 +550,6 @@ def method_record(method):
     if method.label != method.name:
         record["method"] = method.name
     return record
-
-
-def _row(name, spp, seed, result, seconds, reference, mask=None):
-    row = {"method": name, "spp": spp, "seed": seed, "seconds_total": sum(seconds.values())}
-    row.update({f"seconds_{phase}": seconds[phase] for phase in TIME_PHASES})
-    row["path_samples"] = int(result.path_samples)
-    row.update(quality(result.image, reference, mask))
-    return row
 
 
 def _load_rows(folder, methods):

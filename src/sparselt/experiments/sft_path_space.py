@@ -44,7 +44,9 @@ from ..rendering.baseline import METHOD_SEED_LIMIT, cached_reference
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
 from ..thesis.tables import THESIS_SHAPE, table_6_1
 from .protocol import Experiment, run_experiment
-from .compare import IMAGES, RELMSE_EPSILON, check_reference_spp, quality
+from .comparison_cells import IMAGES
+from .compare import check_reference_spp
+from .quality import RELMSE_EPSILON, quality
 
 
 @dataclass(frozen=True)

@@ -287,12 +287,13 @@ def table_6(rows, scene, config, *, methods):
 
 def results_table(rows):
     """A plain-text table of the rows (what the CLI prints)."""
-    header = (f"{'method':18s} {'spp':>5s} {'seed':>4s} {'seconds':>8s} {'SSIM':>6s} {'relMSE':>9s} {'lum.':>6s} "
+    width = max([18] + [len(str(row["method"])) for row in rows])  # a variant's row name is written in full
+    header = (f"{'method':{width}s} {'spp':>5s} {'seed':>4s} {'seconds':>8s} {'SSIM':>6s} {'relMSE':>9s} {'lum.':>6s} "
               f"{'PT relMSE same t':>16s}")
     lines = [header, "-" * len(header)]
     for row in rows:
         equal = row.get("relmse_pt_equal_time", "")
-        lines.append(f"{row['method']:18s} {row['spp']:5d} {row['seed']:4d} {row['seconds_total']:8.3f} "
+        lines.append(f"{row['method']:{width}s} {row['spp']:5d} {row['seed']:4d} {row['seconds_total']:8.3f} "
                      f"{row['ssim']:6.3f} {row['relmse']:9.4g} {row['luminance_ratio']:6.3f} "
                      f"{(f'{equal:.4g}' if equal not in ('', None) else '-'):>16s}")
     return "\n".join(lines)

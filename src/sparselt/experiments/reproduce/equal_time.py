@@ -84,7 +84,8 @@ def _group_figures(run, name, scene, result):
     """The thesis's figures of ``scene``: per group of methods (with PT), quality against time, the images at
     matched time and detail crops, written into the chapter folder."""
     from ...report.comparison_figures import crop_grid_figure, image_grid_figure, matched_pictures, quality_figure
-    from ..compare import IMAGES, RELMSE_EPSILON, cell_name
+    from ..comparison_cells import IMAGES, cell_name
+    from ..quality import RELMSE_EPSILON
 
     folder = run.sub(name)
     reference = np.load(f"{folder}/{IMAGES}/reference.npy")

@@ -25,7 +25,7 @@ DENSE_LIMIT_CELLS = 2 * 10**8
 
 def chapter_6(run):
     """Table 6.1 and Figures 6.1/6.2 (`sparselt table61`), then the importance-map comparisons."""
-    from ..compare import RELMSE_EPSILON
+    from ..quality import RELMSE_EPSILON
     from ..sft_path_space import Table61Config, run_table61
 
     scale = run.scale
