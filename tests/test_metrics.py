@@ -342,3 +342,12 @@ def test_flip_is_zero_for_the_reference_and_grows_with_the_error():
     assert 0 < errors[0] < errors[1] < errors[2] <= 1
     with pytest.raises(ValueError, match="FLIP needs two"):
         flip_error(reference[..., 0], reference[..., 0])
+
+
+def test_flip_refuses_a_black_reference_instead_of_aborting_the_process():
+    """flip-evaluator aborts the interpreter (a C++ abort) when the reference has no light: refused first."""
+    from sparselt.analysis.metrics import flip_error
+
+    black = np.zeros((16, 16, 3), dtype=np.float32)
+    with pytest.raises(ValueError, match="every pixel of the reference is 0"):
+        flip_error(np.ones_like(black), black)

@@ -120,3 +120,39 @@ def test_the_setup_digest_follows_every_field():
     assert base.digest() != SceneSetup("cornell-box", kind="path", max_depth=2, shape=(8, 8, 2, 2, 2, 4)).digest()
     assert base.digest() != SceneSetup("cornell-box", kind="path", max_depth=2, shape=(8, 8, 2, 2, 2, 2),
                                        variant="cuda_ad_rgb").digest()
+
+
+# ----------------------------------------------------------------------------- the command line without --shape
+WALLS = """  <shape type="rectangle">
+    <transform name="to_world"><translate value="0, 0, -1"/><scale value="4"/></transform>
+    <bsdf type="diffuse"/>
+  </shape>
+"""
+
+
+def _compare(scene, out, *extra):
+    from sparselt.cli import main
+
+    return main(["compare", "--scene", str(scene), "-D", "width=16", "--kind", "indirect", "--methods", "pt",
+                 "--spp", "2", "--seeds", "1", "--timing-repeats", "1", "--reference-spp", "16", "--out", str(out),
+                 "--no-progress", *extra])
+
+
+def test_compare_on_a_scene_file_without_shape_uses_the_film_and_records_it(tmp_path, capsys):
+    """A user comparing images of their own scene gives no grid: the film's resolution and the kind's default."""
+    scene = tmp_path / "scene.xml"
+    scene.write_text(XML.replace('<shape type="sphere"/>', '<shape type="sphere"><bsdf type="diffuse"/></shape>\n'
+                                 + WALLS))
+    out = tmp_path / "compare"
+    assert _compare(scene, out) == 0, capsys.readouterr().err
+    record = json.loads((out / "compare.json").read_text())
+    assert record["config"]["shape"] == [16, 24, 16, 16]
+    assert record["config"]["resolution"] == [16, 24]
+
+
+def test_compare_refuses_a_black_reference_with_a_clear_message(tmp_path, capsys):
+    """One lone sphere under a constant sky has no one-bounce indirect light: said, exit status 2."""
+    scene = tmp_path / "scene.xml"
+    scene.write_text(XML)
+    assert _compare(scene, tmp_path / "compare") == 2
+    assert "is black (every pixel 0" in capsys.readouterr().err

@@ -456,6 +456,9 @@ def flip_error(image, reference):
                          f"{reference.shape}")
     test = np.ascontiguousarray(np.maximum(image, 0), dtype=np.float32)
     target = np.ascontiguousarray(np.maximum(reference, 0), dtype=np.float32)
+    if not np.any(target > 0):  # FLIP's HDR exposure range comes from the reference: it aborts the process on none
+        raise ValueError("HDR-FLIP needs a reference with some light in it: every pixel of the reference is 0 (or "
+                         "negative)")
     _, mean, _ = flip_evaluator.evaluate(target, test, "HDR", applyMagma=False, computeMeanError=True)
     return float(mean)
 

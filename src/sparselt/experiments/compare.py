@@ -484,6 +484,11 @@ class ComparisonExperiment(Experiment):
                                                        max_depth=config.max_depth, seed=config.reference_seed,
                                                        progress=progress, cache_directory=self.cache_directory)
         self.seconds["reference"] = time.perf_counter() - reference_start
+        if not np.any(reference > 0):
+            raise ValueError(f"the reference of scene {self.setup.spec.name!r} for kind {config.kind!r} at max depth "
+                             f"{config.max_depth} is black (every pixel 0 after {config.reference_spp} spp): no light "
+                             "reaches the camera along the paths this kind counts, so no image can be compared; "
+                             "check the scene's emitters, the kind, or raise --max-depth")
         exposure = reference_exposure(reference)
         folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
         mask = None
