@@ -43,7 +43,7 @@ import json
 import os
 from datetime import datetime, timezone
 
-from ..digest import bytes_digest
+from ..digest import bytes_digest, canonical
 from ..provenance import atomic_write, atomic_write_bytes, environment_record, read_json
 from .lock import LOCK_FILE, StoreLock, check_unlocked
 
@@ -61,11 +61,6 @@ class FolderError(ValueError):
 
 def _now():
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
-def _canonical(value):
-    """JSON round trip: tuples become lists, so identities compare as they are stored."""
-    return json.loads(json.dumps(value, sort_keys=True, default=_json_default))
 
 
 def _json_default(value):
@@ -149,8 +144,8 @@ class ExperimentFolder:
             raise FolderError(f"output {path!r}: only file-system paths are supported, not URLs")
         self.path = os.path.abspath(path)
         self.kind = kind
-        self.identity = _canonical(identity)
-        self.scene = _canonical(scene) if scene is not None else None
+        self.identity = canonical(identity)  # as stored: tuples become lists, so identities compare as read back
+        self.scene = canonical(scene) if scene is not None else None
         self.overwrite = bool(overwrite)
         self.growable = tuple(growable)
         self.manifest = None
