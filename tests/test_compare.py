@@ -314,8 +314,16 @@ def test_timing_repeats_run_in_rounds_and_an_interrupted_run_resumes_between_the
     assert set(cells.values()) == {3}, cells
     positions = [index for index, call in enumerate(finished) if call[0] == "samples-mean"]
     assert positions[-1] - positions[0] > len(positions)  # not back to back: PT's rungs ran between them
-    ladder = [call for call in finished[:positions[1]] if call[0] == "pt"]
-    assert finished[positions[1] - len(ladder):positions[1]] == ladder[::-1]  # round 2 runs round 1 backwards
+    # Between samples-mean's first two repeats: round 1's PT cells (its budget, then the ladder in search order),
+    # then round 2's, which runs the plan backwards: the plan is PT's budgets, then the ladder's rungs sorted by spp
+    # (a downward extension to 1 spp is searched last but planned first).
+    between = finished[positions[0] + 1:positions[1]]
+    assert between and all(call[0] == "pt" for call in between) and len(between) % 2 == 0, between
+    first_round, second_round = between[:len(between) // 2], between[len(between) // 2:]
+    assert sorted(first_round) == sorted(second_round)
+    budgets = [call for call in first_round if call[1] in config.spps]
+    rungs = sorted((call for call in first_round if call[1] not in config.spps), key=lambda call: call[1])
+    assert second_round == (budgets + rungs)[::-1]  # round 2 runs round 1's plan backwards
     for name in cells:
         record = json.loads((out / "cells" / f"{name[0]}_spp{name[1]}_seed{name[2]}.json").read_text())
         assert len(record["repeat_totals"]) == 3 and record["row"]["timing_repeats"] == 3

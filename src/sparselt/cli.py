@@ -8,9 +8,7 @@ import sys
 
 # Constants live where they are defined; these modules import neither Mitsuba nor Dr.Jit.
 from .experiments.compare import ComparisonConfig
-from .experiments.sparsity_analysis import DEFAULT_GAMMAS
 from .rendering.acquire import NONFINITE_POLICIES, AcquisitionConfig
-from .rendering.setup import DEFAULT_MAX_DEPTH
 from .rendering.layout import KINDS
 from .rendering.setup import DEFAULT_VARIANT, SUPPORTED_VARIANTS
 
@@ -30,12 +28,17 @@ def _number_list(convert, example):
     return parse
 
 
-def _defaults(config_class):
-    """``{field: default}`` of a configuration dataclass: the one place a command's defaults live."""
+def _defaults(config):
+    """``{name: default}`` of a configuration dataclass's fields, or of a function's keyword arguments: the one
+    place a command's defaults live (the CLI reads them, never restates them)."""
     import dataclasses
+    import inspect
 
-    return {item.name: item.default for item in dataclasses.fields(config_class)
-            if item.default is not dataclasses.MISSING}
+    if dataclasses.is_dataclass(config):
+        return {item.name: item.default for item in dataclasses.fields(config)
+                if item.default is not dataclasses.MISSING}
+    return {name: parameter.default for name, parameter in inspect.signature(config).parameters.items()
+            if parameter.default is not inspect.Parameter.empty}
 
 
 def _listed(values):
@@ -193,10 +196,14 @@ def build_parser():
         help="render with Mitsuba's path integrator (the baseline)",
         description="Plain path tracing with Mitsuba's own path integrator; writes image.exr, image.png and render.json.",
     )
+    from .experiments.render import render_reference
+
+    defaults = _defaults(render_reference)
     render.add_argument("--scene", required=True, help="built-in scene name or Mitsuba XML file")
     render.add_argument("--spp", type=int, required=True, help="samples per pixel")
-    render.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, help="longest path (default: %(default)s)")
-    render.add_argument("--seed", type=int, default=0, help="sampler seed (default: %(default)s)")
+    render.add_argument("--max-depth", type=int, default=defaults["max_depth"],
+                        help="longest path (default: %(default)s)")
+    render.add_argument("--seed", type=int, default=defaults["seed"], help="sampler seed (default: %(default)s)")
     render.add_argument("--resolution", type=_shape, default=None, help="width,height (default: the scene's)")
     render.add_argument("--out", required=True, help="output folder")
     render.add_argument("--overwrite", action="store_true",
@@ -212,8 +219,12 @@ def build_parser():
         "Fourier reconstructions against the signal's image (Figures 5.2-5.4, 7.1-7.6).",
     )
     analyze.add_argument("signal", help="signal folder")
-    analyze.add_argument("--gamma", type=_numbers, default=DEFAULT_GAMMAS,
-                         help="gamma mappings, comma separated (default: 1,0.5,0.25,0.1,0.05)")
+    from .experiments.sparsity_analysis import analyze_signal
+
+    defaults = _defaults(analyze_signal)
+    analyze.add_argument("--gamma", type=_numbers, default=defaults["gammas"],
+                         help=f"gamma mappings, comma separated "
+                              f"(default: {_listed(f'{gamma:g}' for gamma in defaults['gammas'])})")
     analyze.add_argument("--fractions", type=_numbers, default=None,
                          help="fractions of Fourier coefficients kept, comma separated (default: 1e-5 .. 0.1)")
     analyze.add_argument("--out", required=True, help="output folder")
@@ -226,11 +237,16 @@ def build_parser():
     bench_integrate = benches.add_parser(
         "integrate", help="integration methods (Figures 4.1, 4.2, Table 4.1)",
         description="Time and peak memory of the four Fourier integration methods on random sparse 4-D signals (thesis 4.3).")
-    bench_integrate.add_argument("--sizes", type=_shape, default=(32, 48, 64, 96, 128), help="s values, N = s^4 (default: 32,48,64,96,128)")
-    bench_integrate.add_argument("--methods", type=_methods, default=("sum", "time", "time-fft", "convolution"),
-                                 help="methods, comma separated (default: all four)")
-    bench_integrate.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    bench_integrate.add_argument("--repeats", type=int, default=5, help="timed calls per measurement, best kept (default: %(default)s)")
+    from .experiments.integration_benchmark import run_integration_benchmark
+
+    defaults = _defaults(run_integration_benchmark)
+    bench_integrate.add_argument("--sizes", type=_shape, default=defaults["sizes"],
+                                 help=f"s values, N = s^4 (default: {_listed(defaults['sizes'])})")
+    bench_integrate.add_argument("--methods", type=_methods, default=defaults["methods"],
+                                 help=f"methods, comma separated (default: {_listed(defaults['methods'])})")
+    bench_integrate.add_argument("--seed", type=int, default=defaults["seed"], help="random seed (default: %(default)s)")
+    bench_integrate.add_argument("--repeats", type=int, default=defaults["repeats"],
+                                 help="timed calls per measurement, best kept (default: %(default)s)")
     bench_integrate.add_argument("--out", required=True, help="output folder")
     bench_integrate.add_argument("--overwrite", action="store_true",
                                  help="replace a folder holding another benchmark (only the files sparselt wrote there)")

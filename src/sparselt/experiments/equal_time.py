@@ -352,7 +352,11 @@ def _compare_with_baseline(record, group, fit, is_baseline):
     if any(value in ("", None) for value in pt_relmse):
         return
     record["relmse_pt_equal_time"] = float(np.mean(pt_relmse))
-    floor = group[0].get("reference_relmse_floor", 0.0) or 0.0
+    floors = {row.get("reference_relmse_floor") or 0.0 for row in group}  # one reference per comparison
+    if len(floors) != 1:
+        raise ValueError(f"the seeds of {record.get('method')!r} at spp {record.get('spp')} were measured against "
+                         f"references of different floors {sorted(floors)}; a comparison has one reference")
+    floor = floors.pop()
     numerator = np.array([row["relmse"] for row in group]) - floor
     denominator = np.array(pt_relmse, dtype=np.float64) - floor
     if np.any(numerator <= 0) or np.any(denominator <= 0):
