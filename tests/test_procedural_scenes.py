@@ -154,7 +154,7 @@ def _ply_triangles(objects):
     return total
 
 
-@pytest.mark.parametrize("name", ["dof-sculptures", "courtyard"])
+@pytest.mark.parametrize("name", ["dof-sculptures", "courtyard", "sunlit-room"])
 def test_scenes_are_registered_dictionaries_without_sensor(name):
     assert name in scene_names() and name in SCENES
     spec = get_scene(name)

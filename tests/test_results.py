@@ -104,6 +104,18 @@ def test_summary_loads_over_method_and_spp(comparison):
     assert dataset_csv(summary) == (out / "summary.csv").read_text()
     mean = sparselt.load_comparison(out).relmse.sel({"method": "samples-mean", "spp": 4}).mean("seed").item()
     assert summary.relmse.sel({"method": "samples-mean", "spp": 4}).item() == pytest.approx(mean, rel=1e-12)
+    # The bias test (Welch per pixel, Benjamini-Hochberg at 1%) of each (method, spp) over its two seeds, and the
+    # luminance ratio's mean over seeds inside its interval.
+    bias = json.loads((out / "compare.json").read_text())["bias"]
+    assert (bias["level"], bias["correction"], bias["reference_degrees_of_freedom"]) == (0.01, "benjamini-hochberg", 3)
+    assert {(cell["method"], cell["spp"]) for cell in bias["cells"]} == {
+        (record["method"], int(record["spp"])) for record in records}
+    for record in records:
+        assert 0.0 <= float(record["bias_fraction"]) <= 1.0
+        assert float(record["luminance_ratio_ci_low"]) < float(record["luminance_ratio"]) < float(
+            record["luminance_ratio_ci_high"])
+    ratio = sparselt.load_comparison(out).luminance_ratio.sel({"method": "pt", "spp": 4}).mean("seed").item()
+    assert summary.luminance_ratio.sel({"method": "pt", "spp": 4}).item() == pytest.approx(ratio, rel=1e-12)
 
 
 def test_loading_writes_nothing_and_takes_no_lock(comparison):

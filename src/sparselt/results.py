@@ -50,7 +50,7 @@ CONFIGURATION_FILE = "compare.json"
 
 def _comparison(folder):
     """``(rows with the equal-time columns, summary records, attributes)`` of a comparison folder, read only."""
-    from .experiments.equal_time import add_equal_time_columns, summarize
+    from .experiments.equal_time import add_bias_fractions, add_equal_time_columns, summarize
 
     reader = ExperimentFolder(os.fspath(folder), kind=COMPARISON_KIND, identity={})
     path = reader.path
@@ -83,7 +83,7 @@ def _comparison(folder):
     config = record.get("config") or {}
     rows = in_comparison_order(rows, [baseline] + list(config.get("methods", [])))
     fit = add_equal_time_columns(rows, baseline=baseline)
-    summary = summarize(rows, fit, baseline=baseline)
+    summary = add_bias_fractions(summarize(rows, fit, baseline=baseline), record.get("bias"))
     floor = record.get("reference_relmse_floor")
     attributes = {
         "scene": config.get("scene", ""), "kind": config.get("kind", ""),
@@ -145,8 +145,11 @@ def load_summary(folder):
 
     Per method and budget: the median time, the mean relMSE, SSIM and FLIP
     over seeds with 95% intervals, path tracing's values at the same time,
-    their ratios with intervals, the verdict and the equal-quality speed-up
-    (:func:`sparselt.experiments.equal_time.summarize`). Parameters,
+    their ratios with intervals, the verdict, the equal-quality speed-up
+    (:func:`sparselt.experiments.equal_time.summarize`), the luminance ratio
+    with its interval and the fraction of pixels the bias test finds biased
+    (``bias_fraction``, from ``compare.json``'s ``bias``; empty in folders
+    written before it). Parameters,
     attributes and errors as :func:`load_comparison`.
     """
     _, summary, attributes = _comparison(folder)

@@ -233,7 +233,8 @@ def pixel_bias_test(images, reference, reference_variance=None, *, reference_deg
     (Benjamini and Yekutieli 2001) and is then a diagnostic, not an exact
     error rate.
 
-    The luminance ratio is ``mean L(image_i) / mean L(reference)`` per seed,
+    The luminance ratio is ``mean L(image_i) / mean L(reference)`` per seed
+    (Rec. 709 luminance for RGB; the plain mean for other channel counts),
     averaged over seeds, with a Student-t interval at 95% over the seeds.
 
     References

@@ -59,7 +59,7 @@ from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS, in_compariso
 from .comparison_cells import IMAGES, CellRunner, cell_name
 from .protocol import Experiment, run_experiment
 from .quality import RELMSE_EPSILON, caustic_mask
-from .equal_time import add_equal_time_columns, summarize
+from .equal_time import add_bias_fractions, add_equal_time_columns, bias_record, summarize
 
 CONFIG_FILE = "compare.json"
 # What makes two comparisons the same: everything but the lists a rerun may extend.
@@ -510,6 +510,7 @@ class ComparisonExperiment(Experiment):
         self.seconds["methods"] = outcome.method_seconds
         self.seconds["metrics"] = outcome.metric_seconds
         self.reference = reference
+        self.reference_variance, self.reference_degrees_of_freedom = _bias_test_reference(reference_record)
         return record
 
     def report(self, folder, state, record):
@@ -518,6 +519,13 @@ class ComparisonExperiment(Experiment):
         rows = _load_rows(folder, [baseline] + record["config"]["methods"])
         fit = add_equal_time_columns(rows, baseline=baseline)
         summary = summarize(rows, fit, baseline=baseline)
+
+        def image_of(row):
+            return np.load(folder.path_of(f"{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy"))
+
+        record["bias"] = bias_record(rows, image_of, self.reference, self.reference_variance,
+                                     self.reference_degrees_of_freedom)
+        add_bias_fractions(summary, record["bias"])
         record["pt_fit"] = None if fit is None else {
             "intercept_seconds": fit.intercept, "seconds_per_spp": fit.slope, "time_relative_residual": fit.time_residual,
             "relmse_per_seed": {str(seed): {"c": c, "floor": floor} for seed, (c, floor) in fit.relmse.items()},
@@ -525,9 +533,7 @@ class ComparisonExperiment(Experiment):
         report_start = time.perf_counter()
         write_comparison_outputs(folder, rows, self.reference, config, self.setup.spec.name, methods=record["methods"],
                                  summary=summary, fit=record["pt_fit"], epsilon=RELMSE_EPSILON,
-                                 image_of=lambda row: np.load(folder.path_of(
-                                     f"{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy")),
-                                 provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
+                                 image_of=image_of, provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
         report_seconds = time.perf_counter() - report_start
         total = time.perf_counter() - self.started
         harness = max(0.0, total - self.seconds["methods"] - self.seconds["reference"])
@@ -560,3 +566,13 @@ def method_record(method):
 def _load_rows(folder, methods):
     """Every finished cell in the folder: this run's and those of earlier runs of the same comparison."""
     return in_comparison_order([record["row"] for record in folder.cells().values()], methods)
+
+
+def _bias_test_reference(reference_record):
+    """The reference's per-pixel variance of its mean and its degrees of freedom (passes - 1) for the bias test;
+    ``(None, None)``, an exact reference, when it has one pass (no variance)."""
+    key, variance = reference_record["key"], reference_record["variance"]
+    passes = -(-key["spp"] // key["pass_spp"])
+    if passes < 2 or not np.all(np.isfinite(variance)):
+        return None, None
+    return variance, passes - 1

@@ -36,11 +36,16 @@ with the median of its repeated timings):
    (from the fits, seeds averaged), over the method's time; its interval from
    the relMSE interval. Where the method's relMSE is below PT's floor, PT
    cannot reach it: the speed-up is infinite.
+5. **Bias.** Per (method, spp) over its seeds: the fraction of pixels that
+   Welch's t-test against the reference finds biased, Benjamini-Hochberg at
+   1% (:func:`bias_record`, :func:`sparselt.analysis.bias.pixel_bias_test`),
+   and the luminance ratio's mean with its 95% Student-t interval.
 
 References
 ----------
 Thesis 8.1.1 (equal-time comparison), Figures 8.1 and 8.3. Bienaymé/delta
-method for ratio intervals: Casella and Berger (2002), 5.5.4.
+method for ratio intervals: Casella and Berger (2002), 5.5.4. Bias: Jung,
+Hanika and Dachsbacher (2020), JCGT 9(2).
 """
 
 from __future__ import annotations
@@ -292,7 +297,8 @@ SUMMARY_COLUMNS = ("method", "spp", "seeds", "seconds_total", "seconds_total_min
                    "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high", "ssim_verdict",
                    "flip", "flip_pt_equal_time", "flip_ratio", "flip_ratio_ci_low", "flip_ratio_ci_high",
                    "flip_verdict",
-                   "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high")
+                   "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high",
+                   "luminance_ratio", "luminance_ratio_ci_low", "luminance_ratio_ci_high", "bias_fraction")
 
 
 def summarize(rows, fit, *, baseline="pt"):
@@ -313,6 +319,9 @@ def summarize(rows, fit, *, baseline="pt"):
                 [row["relmse"] for row in group])
             record["ssim"] = group_mean(group, "ssim")
             record["flip"] = group_mean(group, "flip") if all("flip" in row for row in group) else ""
+            if all(row.get("luminance_ratio") not in ("", None) for row in group):
+                record["luminance_ratio"], record["luminance_ratio_ci_low"], record["luminance_ratio_ci_high"] = (
+                    mean_interval([row["luminance_ratio"] for row in group]))
             _compare_with_baseline(record, group, fit, method == baseline)
             summary.append(record)
             for row in group:
@@ -398,5 +407,69 @@ def _compare_with_baseline(record, group, fit, is_baseline):
         record["speedup_ci_high"] = fit.seconds_for_relmse(max(low, 0.0)) / seconds
 
 
-__all__ = ["CONFIDENCE", "NOISY_TIMING_RATIO", "SUMMARY_COLUMNS", "VERDICTS", "BaselineFit", "add_equal_time_columns",
-           "fit_baseline", "fit_relmse", "fit_time", "mean_interval", "ratio_interval", "summarize", "timing_uncertainty", "verdict"]
+#: The bias test's level and multiple-comparison correction in every comparison (:func:`bias_record`).
+BIAS_LEVEL = 0.01
+BIAS_CORRECTION = "benjamini-hochberg"
+
+
+def bias_record(rows, image_of, reference, reference_variance, reference_degrees_of_freedom):
+    """The bias test of every (method, spp) with at least two seeds: ``compare.json``'s ``bias`` record.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The comparison's rows (their ``method``, ``spp`` and ``seed``).
+    image_of : callable
+        ``image_of(row)``: the row's image, ``(height, width, 3)``.
+    reference : ndarray
+        The reference image.
+    reference_variance : ndarray or None
+        The per-pixel variance of the reference's mean; None (a reference of one pass) takes it as exact.
+    reference_degrees_of_freedom : int or None
+        Its passes minus 1; None with ``reference_variance`` None.
+
+    Returns
+    -------
+    dict
+        ``level``, ``correction``, ``reference_degrees_of_freedom`` and ``cells``: one
+        ``{"method", "spp", "seeds", "bias_fraction"}`` per tested (method, spp).
+
+    Notes
+    -----
+    :func:`sparselt.analysis.bias.pixel_bias_test` of the method's images over seeds against the reference:
+    Welch's t-test per pixel, Benjamini-Hochberg at 1% (Jung et al. 2020, JCGT 9(2)).
+    """
+    from ..analysis.bias import pixel_bias_test
+
+    cells = []
+    for method in dict.fromkeys(row["method"] for row in rows):
+        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
+            group = sorted((row for row in rows if row["method"] == method and row["spp"] == spp),
+                           key=lambda row: row["seed"])
+            if len(group) < 2:
+                continue
+            result = pixel_bias_test(np.stack([image_of(row) for row in group]), reference, reference_variance,
+                                     reference_degrees_of_freedom=reference_degrees_of_freedom, level=BIAS_LEVEL,
+                                     correction=BIAS_CORRECTION)
+            cells.append({"method": method, "spp": spp, "seeds": len(group),
+                          "bias_fraction": result.biased_fraction})
+    return {"level": BIAS_LEVEL, "correction": BIAS_CORRECTION,
+            "reference_degrees_of_freedom": reference_degrees_of_freedom, "cells": cells}
+
+
+def add_bias_fractions(summary, record):
+    """Fill the summary's ``bias_fraction`` from a :func:`bias_record` (None: a folder without one, left empty).
+
+    A cell whose seeds changed since the record was made (a rerun that added seeds) is left empty.
+    """
+    if not record:
+        return summary
+    fractions = {(cell["method"], cell["spp"], cell["seeds"]): cell["bias_fraction"] for cell in record["cells"]}
+    for entry in summary:
+        entry["bias_fraction"] = fractions.get((entry["method"], entry["spp"], entry["seeds"]), "")
+    return summary
+
+
+__all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "NOISY_TIMING_RATIO", "SUMMARY_COLUMNS", "VERDICTS",
+           "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record", "fit_baseline", "fit_relmse",
+           "fit_time", "mean_interval", "ratio_interval", "summarize", "timing_uncertainty", "verdict"]

@@ -20,9 +20,11 @@ An :class:`Experiment` declares
 
 :func:`run_experiment` owns the rest, the same way for every command: the
 :class:`~sparselt.storage.folder.ExperimentFolder` life cycle (identity,
-refusals, lock, manifest, atomic artefacts), resuming finished cells, timing
-repeats in rounds (:meth:`~sparselt.storage.folder.ExperimentFolder.record_repeat`),
-provenance (the folder's history records every command) and progress.
+refusals, lock, manifest, atomic artefacts), resuming finished cells, the
+record of timing repeats (:meth:`~sparselt.storage.folder.ExperimentFolder.record_repeat`;
+an experiment that times its cells in rounds, ``compare``, schedules the
+rounds in its own :meth:`Experiment.run_cells`), provenance (the folder's
+history records every command) and progress.
 
 Adding an experiment is one module with an :class:`Experiment` subclass and
 its report; the CLI calls :func:`run_experiment`.
