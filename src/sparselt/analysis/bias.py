@@ -34,7 +34,7 @@ import numbers
 import numpy as np
 from scipy import stats
 
-from ..checks import check_integer
+from ..checks import check_integer, finite_float_array
 from ..images import luminance
 
 __all__ = ["BIAS_CORRECTIONS", "PixelBiasTest", "multiple_comparison_rejections", "pixel_bias_test"]
@@ -89,18 +89,9 @@ class PixelBiasTest:
 
 
 def _finite_array(value, name):
-    if np.iscomplexobj(value):
-        raise ValueError(f"{name} must be real-valued; got an array of dtype {np.asarray(value).dtype}")
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise TypeError(f"{name} must be a numeric array; got {type(value).__name__} ({error})") from None
-    if not np.all(np.isfinite(array)):
-        bad = int(np.count_nonzero(~np.isfinite(array)))
-        raise ValueError(f"{name} contains {bad} NaN or infinite value(s); only finite values are allowed"
-                         + (" (a reference of one pass has no variance: pass reference_variance=None to take it as "
-                            "exact, or render the reference in more passes)" if name == "reference_variance" else ""))
-    return array
+    hint = (" (a reference of one pass has no variance: pass reference_variance=None to take it as exact, or render "
+            "the reference in more passes)" if name == "reference_variance" else "")
+    return finite_float_array(value, name, hint=hint)
 
 
 def _check_level(level):

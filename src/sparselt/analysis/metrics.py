@@ -40,7 +40,7 @@ import numbers
 import numpy as np
 from scipy import ndimage
 
-from ..checks import check_positive_finite
+from ..checks import check_positive_finite, finite_float_array
 from ..images import luminance, reference_exposure, srgb_tonemap  # noqa: F401  (reference_exposure re-exported)
 
 __all__ = [
@@ -65,27 +65,10 @@ K1 = 0.01
 K2 = 0.03
 
 
-# --------------------------------------------------------------------------- validation
-
-
-def _as_float_array(array, name):
-    """``array`` as a float64 ndarray; ValueError for complex, NaN or infinite values."""
-    if np.iscomplexobj(array):
-        raise ValueError(f"{name} must be real-valued; got an array of dtype {np.asarray(array).dtype}")
-    try:
-        converted = np.asarray(array, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise TypeError(f"{name} must be a numeric array; got {type(array).__name__} ({error})") from None
-    if not np.all(np.isfinite(converted)):
-        bad = int(np.count_nonzero(~np.isfinite(converted)))
-        raise ValueError(f"{name} contains {bad} NaN or infinite value(s); only finite values are allowed")
-    return converted
-
-
 def _image_pair(image, reference):
     """Both arrays as float64, checked to be finite, non-empty and of the same shape."""
-    image = _as_float_array(image, "image")
-    reference = _as_float_array(reference, "reference")
+    image = finite_float_array(image, "image")
+    reference = finite_float_array(reference, "reference")
     if image.shape != reference.shape:
         raise ValueError(
             f"image and reference must have the same shape; got image.shape={image.shape} "
