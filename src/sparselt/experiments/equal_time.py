@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..report.comparison_rows import group_mean
+from ..report.comparison_rows import group_mean, method_spp_groups
 
 #: Two-sided 95% intervals.
 CONFIDENCE = 0.95
@@ -305,31 +305,28 @@ def summarize(rows, fit, *, baseline="pt"):
     """One record per (method, spp) with :data:`SUMMARY_COLUMNS` (``summary.csv``); also fills the rows'
     ``relmse_ratio``, ``verdict`` and ``speedup_equal_quality`` (their intervals only in the summary)."""
     summary = []
-    for method in dict.fromkeys(row["method"] for row in rows):
-        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
-            group = sorted((row for row in rows if row["method"] == method and row["spp"] == spp),
-                           key=lambda row: row["seed"])
-            record = dict.fromkeys(SUMMARY_COLUMNS, "")  # every record has every column, in order
-            record.update(method=method, spp=spp, seeds=len(group))
-            record["seconds_total"] = group_mean(group, "seconds_total")
-            record["seconds_total_min"] = min(row.get("seconds_total_min", row["seconds_total"]) for row in group)
-            record["seconds_total_max"] = max(row.get("seconds_total_max", row["seconds_total"]) for row in group)
-            record["timing_noisy"] = any(bool(row.get("timing_noisy")) for row in group)
-            record["relmse"], record["relmse_ci_low"], record["relmse_ci_high"] = mean_interval(
-                [row["relmse"] for row in group])
-            record["ssim"] = group_mean(group, "ssim")
-            record["flip"] = group_mean(group, "flip") if all("flip" in row for row in group) else ""
-            if all(row.get("luminance_ratio") not in ("", None) for row in group):
-                record["luminance_ratio"], record["luminance_ratio_ci_low"], record["luminance_ratio_ci_high"] = (
-                    mean_interval([row["luminance_ratio"] for row in group]))
-            _compare_with_baseline(record, group, fit, method == baseline)
-            summary.append(record)
-            for row in group:
-                floor = row.get("reference_relmse_floor", 0.0) or 0.0
-                row["relmse_ratio"] = ((row["relmse"] - floor) / (row["relmse_pt_equal_time"] - floor)
-                                       if row.get("relmse_pt_equal_time") not in ("", None) else "")
-                row["verdict"] = record["verdict"]
-                row["speedup_equal_quality"] = record["speedup_equal_quality"]
+    for method, spp, group in method_spp_groups(rows):
+        record = dict.fromkeys(SUMMARY_COLUMNS, "")  # every record has every column, in order
+        record.update(method=method, spp=spp, seeds=len(group))
+        record["seconds_total"] = group_mean(group, "seconds_total")
+        record["seconds_total_min"] = min(row.get("seconds_total_min", row["seconds_total"]) for row in group)
+        record["seconds_total_max"] = max(row.get("seconds_total_max", row["seconds_total"]) for row in group)
+        record["timing_noisy"] = any(bool(row.get("timing_noisy")) for row in group)
+        record["relmse"], record["relmse_ci_low"], record["relmse_ci_high"] = mean_interval(
+            [row["relmse"] for row in group])
+        record["ssim"] = group_mean(group, "ssim")
+        record["flip"] = group_mean(group, "flip") if all("flip" in row for row in group) else ""
+        if all(row.get("luminance_ratio") not in ("", None) for row in group):
+            record["luminance_ratio"], record["luminance_ratio_ci_low"], record["luminance_ratio_ci_high"] = (
+                mean_interval([row["luminance_ratio"] for row in group]))
+        _compare_with_baseline(record, group, fit, method == baseline)
+        summary.append(record)
+        for row in group:
+            floor = row.get("reference_relmse_floor", 0.0) or 0.0
+            row["relmse_ratio"] = ((row["relmse"] - floor) / (row["relmse_pt_equal_time"] - floor)
+                                   if row.get("relmse_pt_equal_time") not in ("", None) else "")
+            row["verdict"] = record["verdict"]
+            row["speedup_equal_quality"] = record["speedup_equal_quality"]
     return summary
 
 
@@ -442,17 +439,13 @@ def bias_record(rows, image_of, reference, reference_variance, reference_degrees
     from ..analysis.bias import pixel_bias_test
 
     cells = []
-    for method in dict.fromkeys(row["method"] for row in rows):
-        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
-            group = sorted((row for row in rows if row["method"] == method and row["spp"] == spp),
-                           key=lambda row: row["seed"])
-            if len(group) < 2:
-                continue
-            result = pixel_bias_test(np.stack([image_of(row) for row in group]), reference, reference_variance,
-                                     reference_degrees_of_freedom=reference_degrees_of_freedom, level=BIAS_LEVEL,
-                                     correction=BIAS_CORRECTION)
-            cells.append({"method": method, "spp": spp, "seeds": len(group),
-                          "bias_fraction": result.biased_fraction})
+    for method, spp, group in method_spp_groups(rows):
+        if len(group) < 2:
+            continue
+        result = pixel_bias_test(np.stack([image_of(row) for row in group]), reference, reference_variance,
+                                 reference_degrees_of_freedom=reference_degrees_of_freedom, level=BIAS_LEVEL,
+                                 correction=BIAS_CORRECTION)
+        cells.append({"method": method, "spp": spp, "seeds": len(group), "bias_fraction": result.biased_fraction})
     return {"level": BIAS_LEVEL, "correction": BIAS_CORRECTION,
             "reference_degrees_of_freedom": reference_degrees_of_freedom, "cells": cells}
 
@@ -471,5 +464,5 @@ def add_bias_fractions(summary, record):
 
 
 __all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "NOISY_TIMING_RATIO", "SUMMARY_COLUMNS", "VERDICTS",
-           "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record", "fit_baseline", "fit_relmse",
-           "fit_time", "mean_interval", "ratio_interval", "summarize", "timing_uncertainty", "verdict"]
+           "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record", "fit_baseline",
+           "fit_relmse", "fit_time", "mean_interval", "ratio_interval", "summarize", "timing_uncertainty", "verdict"]

@@ -48,10 +48,14 @@ def in_comparison_order(rows, methods):
 
 
 def method_spp_groups(rows):
-    """``(method, spp, rows)`` per comparison cell (its rows over seeds): methods as first seen, spp ascending."""
-    for method in methods_in_order(rows):
-        for spp in sorted({row["spp"] for row in rows if row["method"] == method}):
-            yield method, spp, [row for row in rows if row["method"] == method and row["spp"] == spp]
+    """``(method, spp, rows)`` per comparison cell (its rows over seeds, by seed): methods as first seen, spp
+    ascending. The one grouping of a comparison's rows (the summary, the bias test, the reports)."""
+    groups = {}
+    for row in rows:
+        groups.setdefault(row["method"], {}).setdefault(row["spp"], []).append(row)
+    for method, budgets in groups.items():
+        for spp in sorted(budgets):
+            yield method, spp, sorted(budgets[spp], key=lambda row: row["seed"])
 
 
 def group_mean(group, key):
