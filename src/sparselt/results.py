@@ -42,9 +42,9 @@ from .report.comparison_rows import baseline_of, in_comparison_order
 from .report.results import results_dataset, summary_dataset
 from .storage.folder import CELLS, ExperimentFolder
 
-#: The folder kind ``sparselt compare`` writes.
+#: The folder kind ``sparselt compare`` writes (its :class:`~sparselt.experiments.compare.ComparisonExperiment`).
 COMPARISON_KIND = "compare"
-#: The configuration file of a comparison folder.
+#: The configuration file of a comparison folder (written by ``compare``, read here).
 CONFIGURATION_FILE = "compare.json"
 
 
@@ -134,7 +134,10 @@ def load_comparison(folder):
     Examples
     --------
     >>> results = sparselt.load_comparison("out/demo/compare")  # doctest: +SKIP
-    >>> results.relmse.sel(method="cosamp", spp=40).mean("seed")  # doctest: +SKIP
+    >>> results.relmse.sel({"method": "cosamp", "spp": 40}).mean("seed")  # doctest: +SKIP
+
+    Select the method with a dict: ``method=`` is xarray's own keyword argument
+    of :meth:`xarray.Dataset.sel` (inexact matching), not the dimension.
     """
     rows, _, attributes = _comparison(folder)
     return results_dataset(rows, attributes=attributes)

@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -56,12 +57,12 @@ from ..rendering.layout import KINDS
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
 from ..report.comparison import results_table, write_comparison_outputs
 from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS, in_comparison_order
+from ..results import COMPARISON_KIND, CONFIGURATION_FILE as CONFIG_FILE  # the folder load_comparison reads
 from .comparison_cells import IMAGES, CellRunner, cell_name
 from .protocol import Experiment, run_experiment
 from .quality import RELMSE_EPSILON, caustic_mask
 from .equal_time import add_bias_fractions, add_equal_time_columns, bias_record, summarize
 
-CONFIG_FILE = "compare.json"
 # What makes two comparisons the same: everything but the lists a rerun may extend.
 EXTENSIBLE = ("methods", "spps", "seeds")
 #: Bounds checked before any work: a reference beyond them would run for days (2-core machine, ~5 M samples/s).
@@ -141,7 +142,7 @@ class ComparisonConfig:
         if self.shape is None:  # the film's resolution and the kind's default on the other axes, recorded as such
             object.__setattr__(self, "shape", self.setup.grid_shape)
 
-    @property
+    @cached_property  # resolved once per configuration: its scene, identity and loading share it
     def setup(self):
         """The comparison's :class:`~sparselt.rendering.setup.SceneSetup`: scene, parameters, lens, kind, grid."""
         return SceneSetup(scene=self.scene, kind=self.kind, shape=self.shape, max_depth=self.max_depth,
@@ -284,19 +285,12 @@ def validate_config(config, *, with_methods=False):
         With ``with_methods``: ``{row: Method}`` of every row and of the
         baseline (PT's ladder), in that order.
     """
-    from ..methods import method_class
-
     if config.kind not in KINDS:
         raise ValueError(f"compare supports kinds {', '.join(KINDS)}; got {config.kind!r}")
     if not config.methods:
         raise ValueError("give at least one method")
     if len(set(config.methods)) != len(config.methods):
         raise ValueError(f"methods {list(config.methods)} repeat a name")
-    for row in config.methods:
-        cls = method_class(parse_method_variant(row)[0])  # an unknown method or a malformed variant: refused here
-        if config.kind not in cls.kinds:
-            raise ValueError(f"method {row!r} does not support kind {config.kind!r}; it supports "
-                             f"{', '.join(cls.kinds)}")
     if not config.spps:
         raise ValueError("give at least one spp")
     for spp in config.spps:
@@ -426,7 +420,7 @@ class ComparisonExperiment(Experiment):
     :func:`~sparselt.report.comparison.write_comparison_outputs` and ``compare.json``.
     """
 
-    kind = "compare"
+    kind = COMPARISON_KIND
     growable = ("method_options",)
 
     def __init__(self, config, *, cache_directory=None):

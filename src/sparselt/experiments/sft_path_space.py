@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -71,7 +72,7 @@ class Table61Config:
     aperture: float | None = None
     focus_distance: float | None = None
 
-    @property
+    @cached_property  # resolved once per configuration: its scene, identity and loading share it
     def setup(self):
         """The :class:`~sparselt.rendering.setup.SceneSetup` of the experiment: scene, parameters, lens, kind, grid."""
         return SceneSetup(scene=self.scene, kind=self.kind, shape=self.shape, max_depth=self.max_depth,

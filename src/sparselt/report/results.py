@@ -7,8 +7,9 @@ budget and seed. Its results are an :class:`xarray.Dataset` with dimensions
 ``(method, spp)`` are one with dimensions ``(method, spp)``
 (:func:`summary_dataset`). A cell that was not run (path tracing's ladder
 rungs are at other spps than the methods' budgets) is ``NaN``. Reports
-select by coordinate (``dataset.sel(method='cosamp', spp=40)``), never by a
-row's position; :func:`dataset_csv` writes the CSV files from the Dataset.
+select by coordinate (``dataset.sel({'method': 'cosamp', 'spp': 40})``: a
+dict, as ``method=`` is ``sel``'s own keyword), never by a row's position;
+:func:`dataset_csv` writes the CSV files from the Dataset.
 
 Coordinates: ``method`` in order of first appearance (names as written,
 variants such as ``'cosamp:gamma=0.5'`` included), ``spp`` and ``seed``
