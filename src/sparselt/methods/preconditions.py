@@ -69,6 +69,24 @@ class MethodSetup:
                    spps=tuple(spps), thin_lens=thin_lens, aperture_radius=aperture, film_resolution=film)
 
 
+def tiles_of(grid_shape, tile, option, row=""):
+    """``(tiles along x, tiles along y)`` of square tiles of side ``tile`` over the grid's image axes.
+
+    Raises
+    ------
+    ValueError
+        ``tile`` does not divide both image axes; the message names the option
+        (``method.option``, and ``row`` when given) and the sides that do.
+    """
+    width, height = int(grid_shape[0]), int(grid_shape[1])
+    if width % tile or height % tile:
+        common = math.gcd(width, height)
+        divisors = [divisor for divisor in range(1, common + 1) if common % divisor == 0]
+        raise ValueError(f"option {option}={tile}{row} must divide both image axes of the grid {width}x{height}; "
+                         f"choose one of {', '.join(map(str, divisors))}")
+    return width // tile, height // tile
+
+
 class Requirement:
     """One thing a method needs of the comparison; :meth:`check` raises a ValueError naming the method and the fix."""
 
@@ -130,14 +148,8 @@ class TileDividesGrid(Requirement):
         return f"option {self.option} dividing both image axes of the grid"
 
     def check(self, method, setup):
-        tile = int(getattr(method.options, self.option))
-        width, height = int(setup.grid_shape[0]), int(setup.grid_shape[1])
-        if width % tile or height % tile:
-            common = math.gcd(width, height)
-            divisors = [divisor for divisor in range(1, common + 1) if common % divisor == 0]
-            row = f" (row {method.label!r})" if method.label != method.name else ""
-            raise ValueError(f"option {method.name}.{self.option}={tile}{row} must divide both image axes of the grid "
-                             f"{width}x{height}; choose one of {', '.join(map(str, divisors))}")
+        row = f" (row {method.label!r})" if method.label != method.name else ""
+        tiles_of(setup.grid_shape, int(getattr(method.options, self.option)), f"{method.name}.{self.option}", row)
 
 
 class FilmResolution(Requirement):
@@ -170,4 +182,4 @@ class MinimumSpp(Requirement):
 
 
 __all__ = ["FilmResolution", "MethodSetup", "MinimumSpp", "Requirement", "ResolutionMultiple", "SupportedKind",
-           "ThinLens", "TileDividesGrid"]
+           "ThinLens", "TileDividesGrid", "tiles_of"]

@@ -118,7 +118,7 @@ from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .cosamp_reconstruction import CosampOptions, cross_fitted_image, default_sparsity, reconstruct_luminance
 from .options import option
 from .pixel_samples import cell_means, draw_pixel_samples
-from .preconditions import MinimumSpp, ThinLens, TileDividesGrid
+from .preconditions import MinimumSpp, ThinLens, TileDividesGrid, tiles_of
 from .registry import register
 
 #: Default tiles are the largest common divisor of the image axes up to this (25 for 250x250).
@@ -159,13 +159,9 @@ class WedgeCosampOptions(CosampOptions):
 
 
 def check_tiling(grid_shape, tile):
-    """``(tiles along x, tiles along y)``; ValueError naming the fix when ``tile`` does not divide the image axes."""
-    width, height = int(grid_shape[0]), int(grid_shape[1])
-    if width % tile or height % tile:
-        divisors = [d for d in range(1, math.gcd(width, height) + 1) if math.gcd(width, height) % d == 0]
-        raise ValueError(f"option wedge-cosamp.tile={tile} must divide both image axes of the grid {width}x{height}; "
-                         f"choose one of {', '.join(map(str, divisors))}")
-    return width // tile, height // tile
+    """``(tiles along x, tiles along y)``; ValueError naming the fix when ``tile`` does not divide the image axes
+    (:func:`~sparselt.methods.preconditions.tiles_of`, the check of its ``TileDividesGrid`` precondition)."""
+    return tiles_of(grid_shape, tile, "wedge-cosamp.tile")
 
 
 def check_lens(context):

@@ -228,9 +228,5 @@ class LoadedScene:
     scene: object
     layout: object
 
-    @property
-    def thin_lens(self):
-        return bool(self.scene.camera.thin_lens)
-
 
 __all__ = ["DEFAULT_MAX_DEPTH", "DEFAULT_VARIANT", "LoadedScene", "SUPPORTED_VARIANTS", "SceneSetup"]
