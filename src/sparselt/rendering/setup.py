@@ -228,5 +228,10 @@ class LoadedScene:
     scene: object
     layout: object
 
+    @property
+    def thin_lens(self):
+        """Whether the loaded camera is a thin lens (a scene file's camera is known only once it has loaded)."""
+        return bool(self.scene.camera.thin_lens)
+
 
 __all__ = ["DEFAULT_MAX_DEPTH", "DEFAULT_VARIANT", "LoadedScene", "SUPPORTED_VARIANTS", "SceneSetup"]
