@@ -120,7 +120,7 @@ def test_path_tracing_is_unbiased_and_a_blurred_path_tracer_is_biased(tmp_path):
     scene = MitsubaScene(get_scene("cornell-box"), (32, 32))
     reference, record = cached_reference(scene, "path", spp=4096, max_depth=2, seed=0, progress=False,
                                          cache_directory=str(tmp_path))
-    passes = -(-record["key"]["spp"] // record["key"]["pass_spp"])
+    passes = record["passes"]
     blocks, seeds, pixels = 10, 20, 32 * 32
     fractions, raw_rates, first = [], [], None
     for block in range(blocks):

@@ -45,7 +45,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from sparselt.experiments.equal_time import add_equal_time_columns, summarize
+from sparselt.experiments.equal_time import judge
 from sparselt.experiments.integration_report import (
     IntegrationMeasurement,
     complexity_table,
@@ -53,16 +53,20 @@ from sparselt.experiments.integration_report import (
     summarise,
 )
 from sparselt.report.comparison import equal_time_table, table_6, table_8
+from sparselt.results import reference_spp
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
 #: Relative tolerance for numbers recomputed from ``results.csv``'s six printed digits (module docstring).
 RELATIVE = 1e-3
 #: The rows' columns that the equal-time protocol writes: removed before recomputing, compared after.
-DERIVED_ROW_COLUMNS = ("relmse_pt_equal_time", "ssim_pt_equal_time", "flip_pt_equal_time", "relmse_ratio",
-                       "verdict", "speedup_equal_quality")
-INTEGER_COLUMNS = {"spp", "seed", "seeds", "path_samples", "timing_repeats"}
-BOOLEAN_COLUMNS = {"timing_noisy", "reference_limited"}
-TEXT_COLUMNS = {"method", "verdict", "ssim_verdict", "flip_verdict"}
+DERIVED_ROW_COLUMNS = ("relmse_pt_equal_time", "relmse_trimmed_pt_equal_time", "ssim_pt_equal_time",
+                       "flip_pt_equal_time", "relmse_ratio", "relmse_trimmed_ratio", "verdict",
+                       "speedup_equal_quality", "speedup_bound", "outlier_dominated", "bias_fraction")
+INTEGER_COLUMNS = {"spp", "seed", "seeds", "path_samples", "timing_repeats", "reference_spp", "reference_spp_needed",
+                   "pt_ladder_spp"}
+BOOLEAN_COLUMNS = {"timing_noisy", "reference_limited", "outlier_dominated", "verdicts_disagree"}
+TEXT_COLUMNS = {"method", "verdict", "ssim_verdict", "flip_verdict", "relmse_verdict", "relmse_trimmed_verdict",
+                "headline_metric", "speedup_bound"}
 
 #: Comparison folders of the current protocol (``summary.csv``), reproduce's nested ones included.
 COMPARISONS = sorted(path.parent for path in EXPERIMENTS.rglob("summary.csv"))
@@ -185,8 +189,9 @@ def recompute(folder):
     """The folder's rows (derived columns recomputed), summary and PT fit, from ``results.csv`` alone."""
     committed = read_records(folder / "results.csv")
     rows = [{key: value for key, value in row.items() if key not in DERIVED_ROW_COLUMNS} for row in committed]
-    fit = add_equal_time_columns(rows, baseline="pt")
-    return committed, rows, summarize(rows, fit, baseline="pt"), fit
+    record = json.loads((folder / "compare.json").read_text())
+    fit, summary = judge(rows, baseline="pt", reference_spp=reference_spp(record), bias=record.get("bias"))
+    return committed, rows, summary, fit
 
 
 def _name(folder):

@@ -146,9 +146,13 @@ CORRUPTIONS = {"truncated": _truncate, "garbled-header": _garble_header, "garble
 
 @pytest.mark.parametrize("corruption", sorted(CORRUPTIONS))
 def test_corrupt_cached_reference_is_rendered_again(tmp_path, capsys, cornell, corruption):
+    """A reference is its cached passes (the image beside them is derived): a corrupt pass is caught by the
+    SHA-256 its record holds and rendered again, with a note."""
+    from sparselt.rendering.reference_passes import pass_paths
+
     cache = tmp_path / "cache"
     image, record = reference(cornell, cache)
-    CORRUPTIONS[corruption](record["path"])
+    CORRUPTIONS[corruption](pass_paths(record["folder"], 0)[0])
     again, record = reference(cornell, cache)
     assert record["cached"] is False
     assert np.array_equal(again, image)  # the same passes and seeds
@@ -158,10 +162,11 @@ def test_corrupt_cached_reference_is_rendered_again(tmp_path, capsys, cornell, c
 
 
 def test_garbled_cache_record_is_rendered_again(tmp_path, capsys, cornell):
+    from sparselt.rendering.reference_passes import pass_paths
+
     cache = tmp_path / "cache"
     image, record = reference(cornell, cache)
-    record_path = os.path.join(os.path.dirname(record["path"]), "reference.json")
-    open(record_path, "w").write('{"key": ')
+    open(pass_paths(record["folder"], 0)[1], "w").write('{"key": ')
     again, record = reference(cornell, cache)
     assert record["cached"] is False and np.array_equal(again, image)
     assert "unreadable" in capsys.readouterr().err

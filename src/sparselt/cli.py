@@ -49,6 +49,16 @@ _shape = _number_list(int, "64,64,8,8")
 _numbers = _number_list(float, "1,0.5,0.25")
 
 
+def _reference_spp(text):
+    """``--reference-spp``: a positive number of samples per pixel, or ``auto``."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected samples per pixel (a whole number) or 'auto', got {text!r}") from None
+
+
 def _names(text):
     names = tuple(part.strip() for part in text.split(",") if part.strip())
     if not names:
@@ -280,8 +290,16 @@ def build_parser():
                          help="PT runs automatically at a doubling spp ladder until it passes every method's time, "
                               "up to this spp (default: %(default)s)")
     compare.add_argument("--resolution", type=_shape, default=None, help="output width,height (default: the shape's image axes)")
-    compare.add_argument("--reference-spp", type=int, default=defaults["reference_spp"],
-                         help="reference samples per pixel (default: %(default)s)")
+    compare.add_argument("--reference-spp", type=_reference_spp, default=defaults["reference_spp"],
+                         help="reference samples per pixel, rendered in cached 64-spp passes (a rerun with more adds "
+                              "passes), or 'auto': add passes until the reference's floor is under 10%% of the "
+                              "smallest debiased relMSE among the judged cells (default: %(default)s)")
+    compare.add_argument("--reference-minutes", type=float, default=None,
+                         help="time limit of the reference's rendering in minutes (default: 10 with auto, none "
+                              "otherwise)")
+    compare.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                         help="a Dask scheduler (tcp://host:8786): the reference's passes render on its workers, "
+                              "with the same bytes")
     compare.add_argument("--max-depth", type=int, default=defaults["max_depth"], help="longest path (default: %(default)s)")
     compare.add_argument("--option", dest="options", action=_MethodOption, default={}, metavar="METHOD.NAME=VALUE",
                          help="a method's option (repeatable; see the list below)")
@@ -290,7 +308,10 @@ def build_parser():
                              help=argparse.SUPPRESS)
     _add_plugin_option(compare)
     compare.add_argument("--caustic-mask", action="store_true",
-                         help="also report relMSE inside a caustic mask (bright spots on diffuse surfaces)")
+                         help="also report relMSE inside a caustic mask: the pixels where caustic paths (light "
+                              "reaching a diffuse surface through specular ones, L S+ D in Heckbert's notation, as "
+                              "the renderer classifies its paths) carry over 30%% of the radiance; any scene, a "
+                              "scene file included")
     compare.add_argument("--out", required=True, help="output folder (rerun to resume)")
     compare.add_argument("--overwrite", action="store_true",
                          help="replace a folder holding another comparison (only the files sparselt wrote there)")
@@ -455,11 +476,13 @@ def _compare(arguments):
         methods=tuple(arguments.methods),
         spps=tuple(arguments.spp), seeds=tuple(arguments.seeds),
         resolution=tuple(arguments.resolution) if arguments.resolution else None,
-        reference_spp=arguments.reference_spp, max_depth=arguments.max_depth, aperture=arguments.aperture,
+        reference_spp=arguments.reference_spp, reference_minutes=arguments.reference_minutes,
+        max_depth=arguments.max_depth, aperture=arguments.aperture,
         focus_distance=arguments.focus_distance, options=arguments.options, timing_repeats=arguments.timing_repeats,
         pt_ladder_max_spp=arguments.pt_ladder_max_spp, caustic_mask=arguments.caustic_mask,
         variant=arguments.variant, scene_parameters=arguments.parameters)
-    result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress)
+    result = compare(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress,
+                     scheduler=arguments.scheduler)
     print(result.table())
     print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
     return 0

@@ -48,9 +48,18 @@ COMPARISON_KIND = "compare"
 CONFIGURATION_FILE = "compare.json"
 
 
+def reference_spp(record):
+    """The reference spp a comparison's cells were measured against, from its ``compare.json`` record: the
+    reference's own (``--reference-spp auto`` resolves it), else the configured number; None if unknown."""
+    spp = (record.get("reference") or {}).get("spp")
+    if spp is None:
+        spp = (record.get("config") or {}).get("reference_spp")
+    return spp if isinstance(spp, int) and not isinstance(spp, bool) else None
+
+
 def _comparison(folder):
     """``(rows with the equal-time columns, summary records, attributes)`` of a comparison folder, read only."""
-    from .experiments.equal_time import add_bias_fractions, add_equal_time_columns, summarize
+    from .experiments.equal_time import judge
 
     reader = ExperimentFolder(os.fspath(folder), kind=COMPARISON_KIND, identity={})
     path = reader.path
@@ -82,13 +91,12 @@ def _comparison(folder):
     baseline = baseline_of(methods)
     config = record.get("config") or {}
     rows = in_comparison_order(rows, [baseline] + list(config.get("methods", [])))
-    fit = add_equal_time_columns(rows, baseline=baseline)
-    summary = add_bias_fractions(summarize(rows, fit, baseline=baseline), record.get("bias"))
+    _, summary = judge(rows, baseline=baseline, reference_spp=reference_spp(record), bias=record.get("bias"))
     floor = record.get("reference_relmse_floor")
     attributes = {
         "scene": config.get("scene", ""), "kind": config.get("kind", ""),
         "relmse_epsilon": record.get("relmse_epsilon", math.nan),
-        "reference_spp": config.get("reference_spp", -1), "reference_seed": config.get("reference_seed", -1),
+        "reference_spp": reference_spp(record) or -1, "reference_seed": config.get("reference_seed", -1),
         "baseline": baseline or "", "reference_relmse_floor": math.nan if floor is None else floor,
         "status": manifest["status"], "folder": path,
         "config": json.dumps(config, sort_keys=True), "methods": json.dumps(methods, sort_keys=True),

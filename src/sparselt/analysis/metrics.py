@@ -44,6 +44,11 @@ from ..checks import check_positive_finite, finite_float_array
 from ..images import luminance, reference_exposure, srgb_tonemap  # noqa: F401  (reference_exposure re-exported)
 
 __all__ = [
+    "TRIMMED_FRACTION",
+    "pixel_relative_squared_error",
+    "relative_error_denominator",
+    "trimmed_pixel_count",
+    "trimmed_relative_mean_squared_error",
     "display_image",
     "flip_error",
     "image_ssim",
@@ -359,17 +364,95 @@ def relative_mean_squared_error(image, reference, *, epsilon=1e-2):
     reconstruction using greedy error minimization. ACM Transactions on
     Graphics, 30(6) (relMSE as used in rendering).
     """
+    return float(np.mean(pixel_relative_squared_error(image, reference, epsilon=epsilon)))
+
+
+def relative_error_denominator(reference, *, epsilon):
+    """relMSE's per-pixel denominator: the mean over channels of the squared reference, plus ``epsilon``.
+
+    ``(height, width)`` for a grayscale or colour reference (float64); the one
+    place :func:`relative_mean_squared_error`, its per-pixel map and the
+    reference's floor map divide by.
+    """
+    reference = np.asarray(reference, dtype=np.float64)
+    if reference.ndim == 2:
+        return reference**2 + epsilon
+    if reference.ndim == 3:
+        return np.mean(reference**2, axis=-1) + epsilon
+    raise ValueError(f"images must be (height, width) or (height, width, channels); got shape {reference.shape}")
+
+
+def pixel_relative_squared_error(image, reference, *, epsilon=1e-2):
+    """relMSE's per-pixel terms, ``(height, width)``: the mean over channels of ``(x - y)^2 / (mean_c y^2 + eps)``.
+
+    Its mean over pixels is :func:`relative_mean_squared_error`; the error
+    maps, :func:`trimmed_relative_mean_squared_error` and the outlier share
+    read it. Validation as :func:`relative_mean_squared_error`.
+    """
     epsilon = _positive_finite(epsilon, "epsilon", hint="a small positive number, e.g. 1e-2")
     image, reference = _image_pair(image, reference)
-    if image.ndim == 2:
-        denominator = reference**2 + epsilon
-    elif image.ndim == 3:
-        denominator = np.mean(reference**2, axis=-1, keepdims=True) + epsilon
-    else:
-        raise ValueError(
-            f"images must be (height, width) or (height, width, channels); got shape {image.shape}"
-        )
-    return float(np.mean((image - reference) ** 2 / denominator))
+    denominator = relative_error_denominator(reference, epsilon=epsilon)
+    squared = (image - reference) ** 2
+    if squared.ndim == 3:
+        squared = np.mean(squared, axis=-1)
+    return squared / denominator
+
+
+#: The share of per-pixel errors the field's trimmed relMSE discards: the top 0.1% (SimpleImageIO's
+#: ``RelMSE_OutlierRejection``; Figueiredo et al. 2025).
+TRIMMED_FRACTION = 0.001
+
+
+def trimmed_pixel_count(pixels, fraction=TRIMMED_FRACTION):
+    """How many of ``pixels`` per-pixel errors the trimmed relMSE discards: ``floor(fraction * pixels)``, at
+    least one (and none of a single pixel)."""
+    if pixels <= 1:
+        return 0
+    return min(max(1, int(math.floor(fraction * pixels))), pixels - 1)
+
+
+def trimmed_relative_mean_squared_error(image, reference, *, epsilon=1e-2, fraction=TRIMMED_FRACTION):
+    """relMSE with the largest ``fraction`` of per-pixel errors discarded, and the share of relMSE they held.
+
+    Parameters
+    ----------
+    image, reference : array_like
+        As :func:`relative_mean_squared_error`.
+    epsilon : float, optional
+        relMSE's epsilon (default ``1e-2``).
+    fraction : float, optional
+        The share of pixels discarded, largest errors first:
+        :func:`trimmed_pixel_count` (``floor(fraction * pixels)``, at least
+        one pixel). Default 0.1%, the field's convention.
+
+    Returns
+    -------
+    trimmed : float
+        The mean of the remaining per-pixel errors (:func:`pixel_relative_squared_error`).
+    outlier_share : float
+        The discarded pixels' share of the untrimmed relMSE's sum (0 when the
+        images are equal): above 0.5, a few pixels decide the metric.
+    kept : ndarray of bool, shape (height, width)
+        The pixels kept (ties at the threshold broken by position, so exactly
+        ``pixels - trimmed_pixel_count(pixels)`` are kept).
+
+    Notes
+    -----
+    Fireflies (rare high-energy samples) put most of a path tracer's relMSE
+    into a handful of pixels at low spp; the trimmed metric keeps a verdict
+    from being decided by them (Figueiredo et al. 2025, which average 10
+    runs of it; SimpleImageIO, ``Metrics.RelMSE_OutlierRejection``).
+    """
+    errors = pixel_relative_squared_error(image, reference, epsilon=epsilon)
+    flat = errors.ravel()
+    discarded = trimmed_pixel_count(flat.size, fraction)
+    kept = np.ones(flat.size, dtype=bool)
+    if discarded:
+        kept[np.argpartition(flat, flat.size - discarded)[flat.size - discarded:]] = False
+    total = float(flat.sum())
+    trimmed = float(flat[kept].mean())
+    share = float(flat[~kept].sum()) / total if total > 0 else 0.0
+    return trimmed, share, kept.reshape(errors.shape)
 
 
 # --------------------------------------------------------------------------- HDR convention

@@ -22,6 +22,7 @@ Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
     images/                 EXR + PNG + npy per method, spp and seed, and the reference
     quality_vs_time.png     SSIM and relMSE against seconds (Figures 8.1/8.3)
     image_grid.png          every method at matched time (Figures 8.2/8.4, 8.7/8.9)
+    error_maps.png          their per-pixel relative squared error, one false-colour scale for all
     crop_grid.png           detail crops where the methods differ most, at matched time
     table_8.md, .csv        time per phase (Tables 8.1/8.2), thesis numbers beside
     equal_time.md, .csv     relMSE and SSIM of each method over PT's at the same time
@@ -38,7 +39,8 @@ holding files sparselt did not write is always refused.
 
 from __future__ import annotations
 
-import math
+import dataclasses
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from functools import cached_property
@@ -48,23 +50,46 @@ import numpy as np
 from ..analysis.metrics import (
     reference_exposure,
 )
-from ..checks import check_integer
+from ..checks import check_integer, check_positive_finite
 from ..methods import ComparisonContext, MethodSetup, baseline_name, get_method
 from ..methods.variants import parse_method_variant
 from ..provenance import environment_record
-from ..rendering.baseline import METHOD_SEED_LIMIT, REFERENCE_SEED_LIMIT, check_wavefront, reference_relmse_floor
+from ..rendering.baseline import (
+    METHOD_SEED_LIMIT,
+    REFERENCE_SEED_LIMIT,
+    check_wavefront,
+    reference_spp_for_floor,
+)
 from ..rendering.layout import KINDS
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
 from ..report.comparison import results_table, write_comparison_outputs
 from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS, in_comparison_order
-from ..results import COMPARISON_KIND, CONFIGURATION_FILE as CONFIG_FILE  # the folder load_comparison reads
+from ..results import COMPARISON_KIND  # the folder load_comparison reads
+from ..results import CONFIGURATION_FILE as CONFIG_FILE
 from .comparison_cells import IMAGES, CellRunner, cell_name
+from .equal_time import (
+    bias_record,
+    fit_record,
+    headline_metric,
+    judge,
+    row_floor,
+)
 from .protocol import Experiment, run_experiment
-from .quality import RELMSE_EPSILON, caustic_mask
-from .equal_time import add_bias_fractions, add_equal_time_columns, bias_record, summarize
+from .quality import RELMSE_EPSILON, caustic_mask, quality, reference_floor_map
 
-# What makes two comparisons the same: everything but the lists a rerun may extend.
+# What makes two comparisons the same: everything but the lists a rerun may extend and the reference's budget
+# (a rerun with a longer reference measures every cell again against it).
 EXTENSIBLE = ("methods", "spps", "seeds")
+REFERENCE_BUDGET = ("reference_spp", "reference_minutes")
+#: ``--reference-spp auto``: start from this many spp, then add passes until the floor is at most
+#: :data:`AUTO_FLOOR_SHARE` of the smallest debiased headline relMSE among the cells it judges.
+AUTO = "auto"
+AUTO_INITIAL_SPP = 1024
+AUTO_FLOOR_SHARE = 0.1
+#: ``--reference-minutes`` when ``--reference-spp auto`` is given without it.
+AUTO_DEFAULT_MINUTES = 10.0
+#: At most this many rounds of adding passes and measuring again (each predicts the spp it needs from the 1/spp law).
+AUTO_ROUNDS = 4
 #: Bounds checked before any work: a reference beyond them would run for days (2-core machine, ~5 M samples/s).
 MAXIMUM_REFERENCE_SPP = 2**24
 MAXIMUM_REFERENCE_SAMPLES = 2**40
@@ -91,8 +116,17 @@ class ComparisonConfig:
         Seeds; every (method, spp) runs once per seed.
     resolution : tuple of int or None
         Output ``(width, height)``; default the shape's image axes.
-    reference_spp : int
-        Samples per pixel of the reference (Mitsuba ``path``).
+    reference_spp : int or 'auto'
+        Samples per pixel of the reference (Mitsuba ``path``, in 64-spp
+        passes, cached and resumable). ``'auto'`` starts from
+        :data:`AUTO_INITIAL_SPP` and adds passes until the reference's floor
+        is at most :data:`AUTO_FLOOR_SHARE` of the smallest debiased headline
+        relMSE among the cells it judges (every method's at the run's budgets,
+        PT's too), or ``reference_minutes`` run out.
+    reference_minutes : float or None
+        The reference's rendering time limit in minutes (passes already
+        cached cost nothing); default :data:`AUTO_DEFAULT_MINUTES` with
+        ``'auto'``, none with a number.
     reference_seed : int
         Seed of the reference (independent of the methods' seeds).
     max_depth : int
@@ -126,8 +160,9 @@ class ComparisonConfig:
     spps: tuple = (40, 81, 163)
     seeds: tuple = (1, 2, 3)
     resolution: tuple | None = None
-    reference_spp: int = 4096
+    reference_spp: int | str = 4096
     reference_seed: int = 0
+    reference_minutes: float | None = None
     max_depth: int = DEFAULT_MAX_DEPTH
     aperture: float | None = None
     focus_distance: float | None = None
@@ -194,7 +229,8 @@ class ComparisonConfig:
         :meth:`comparison_methods`) saves resolving the options again.
         """
         methods = self.comparison_methods() if methods is None else methods
-        record = {key: value for key, value in self.record().items() if key not in EXTENSIBLE + ("options",)}
+        record = {key: value for key, value in self.record().items()
+                  if key not in EXTENSIBLE + REFERENCE_BUDGET + ("options",)}
         record["method_options"] = {row: methods[row].options.record() for row in self.methods}
         return record
 
@@ -318,7 +354,11 @@ def validate_config(config, *, with_methods=False):
                                              resolution=resolution, spps=tuple(config.spps),
                                              thin_lens=None if camera is None else bool(camera.thin_lens)))
     check_wavefront(resolution, max(max(config.spps), config.pt_ladder_max_spp))
-    check_reference_spp(resolution, config.reference_spp)
+    if config.reference_spp != AUTO:
+        check_reference_spp(resolution, config.reference_spp)
+    if config.reference_minutes is not None:
+        check_positive_finite(config.reference_minutes, "reference minutes",
+                              hint="the reference's rendering time limit, e.g. 10")
     if min(resolution) < 11:
         raise ValueError(f"resolution {resolution} is too small for SSIM (at least 11x11 pixels)")
     return (setup, methods) if with_methods else setup
@@ -350,6 +390,8 @@ def _check_distinct(methods):
 
 def check_reference_spp(resolution, spp):
     """Refuse a reference that would run for days: an estimate and a bound, before any work."""
+    if isinstance(spp, str):
+        raise ValueError(f"reference spp must be a number of samples per pixel or {AUTO!r}, got {spp!r}")
     check_integer("reference spp", spp, 1, MAXIMUM_REFERENCE_SPP)
     samples = resolution[0] * resolution[1] * spp
     if samples > MAXIMUM_REFERENCE_SAMPLES:
@@ -363,7 +405,7 @@ def check_reference_spp(resolution, spp):
 
 
 
-def compare(config, out, *, overwrite=False, progress=True, cache_directory=None):
+def compare(config, out, *, overwrite=False, progress=True, cache_directory=None, scheduler=None):
     """Run an equal-time comparison and write its folder (see the module docstring).
 
     Parameters
@@ -382,6 +424,10 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
         Progress bars and one line per finished cell on standard error.
     cache_directory : str, optional
         Where reference images are cached (default ``$SPARSELT_CACHE/references``).
+    scheduler : str, optional
+        A Dask scheduler's address: the reference's missing passes render on
+        its workers, with the same bytes as in-process (each pass is a
+        function of its seed; the passes are averaged in their order).
 
     Returns
     -------
@@ -399,8 +445,8 @@ def compare(config, out, *, overwrite=False, progress=True, cache_directory=None
     StoreLockedError
         Another run is writing the folder (the message names it).
     """
-    return run_experiment(ComparisonExperiment(config, cache_directory=cache_directory), out, overwrite=overwrite,
-                          progress=progress)
+    return run_experiment(ComparisonExperiment(config, cache_directory=cache_directory, scheduler=scheduler), out,
+                          overwrite=overwrite, progress=progress)
 
 
 @dataclass(frozen=True)
@@ -423,9 +469,10 @@ class ComparisonExperiment(Experiment):
     kind = COMPARISON_KIND
     growable = ("method_options",)
 
-    def __init__(self, config, *, cache_directory=None):
+    def __init__(self, config, *, cache_directory=None, scheduler=None):
         self.config = config
         self.cache_directory = cache_directory
+        self.scheduler = scheduler
         self.started = time.perf_counter()
         self.setup = self.methods = self._identity = None
         self.seconds = {}
@@ -455,7 +502,6 @@ class ComparisonExperiment(Experiment):
 
     def run_cells(self, folder, state, *, progress):
         """The reference (cached), then every cell in rounds and PT's ladder; returns ``compare.json``'s record."""
-        from ..rendering.baseline import cached_reference
 
         config, methods, loaded = self.config, self.methods, state.context.scene
         record = folder.read_json(CONFIG_FILE) if folder.exists(CONFIG_FILE) else {}
@@ -474,58 +520,106 @@ class ComparisonExperiment(Experiment):
         folder.write_json(CONFIG_FILE, record)
 
         reference_start = time.perf_counter()
-        reference, reference_record = cached_reference(loaded, config.kind, spp=config.reference_spp,
-                                                       max_depth=config.max_depth, seed=config.reference_seed,
-                                                       progress=progress, cache_directory=self.cache_directory)
+        minutes = config.reference_minutes
+        if minutes is None and config.reference_spp == AUTO:
+            minutes = AUTO_DEFAULT_MINUTES
+        self.reference_deadline = None if minutes is None else time.monotonic() + 60.0 * minutes
+        spp = AUTO_INITIAL_SPP if config.reference_spp == AUTO else config.reference_spp
+        measure = self._reference(loaded, spp, progress)
         self.seconds["reference"] = time.perf_counter() - reference_start
-        if not np.any(reference > 0):
-            raise ValueError(f"the reference of scene {self.setup.spec.name!r} for kind {config.kind!r} at max depth "
-                             f"{config.max_depth} is black (every pixel 0 after {config.reference_spp} spp): no light "
-                             "reaches the camera along the paths this kind counts, so no image can be compared; "
-                             "check the scene's emitters, the kind, or raise --max-depth")
+        reference = measure.image
         exposure = reference_exposure(reference)
         folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
-        mask = None
         if config.caustic_mask:
-            mask = caustic_mask(loaded, reference, spp=min(config.reference_spp, 1024), max_depth=config.max_depth,
+            mask = caustic_mask(loaded, reference, spp=min(measure.spp, 1024), max_depth=config.max_depth,
                                 seed=config.reference_seed)
             folder.write_png(f"{IMAGES}/caustic_mask.png", np.repeat(mask[..., None], 3, axis=2).astype(np.float32))
             record["caustic_mask_pixels"] = int(mask.sum())
-        record["reference"] = {key: reference_record[key] for key in ("key", "seconds", "cached", "path")}
-        floor = reference_relmse_floor(reference, reference_record["variance"], epsilon=RELMSE_EPSILON)
-        record["reference_relmse_floor"] = floor if math.isfinite(floor) else None
+            measure = dataclasses.replace(measure, mask=mask)
+        self.measure = measure
 
-        runner = CellRunner(folder, state.context, config, reference, mask, exposure, progress,
-                             floor=record["reference_relmse_floor"], rows_so_far=tuple(record["config"]["methods"]))
+        runner = CellRunner(folder, state.context, config, lambda image: self.measure(image), exposure, progress,
+                            rows_so_far=tuple(record["config"]["methods"]))
         outcome = runner.run_all(list(methods.values()), methods[baseline_name()])
+        remeasured = remeasure_cells(folder, self.measure)
+        if config.reference_spp == AUTO:
+            reference_start = time.perf_counter()
+            record["reference_target"] = self._converge(folder, loaded, record["config"], progress)
+            self.seconds["reference"] += time.perf_counter() - reference_start
+        record["reference"] = self.measure.summary()
+        record["reference"]["cells_measured_again"] = remeasured + record.get("reference_target", {}).get(
+            "cells_measured_again", 0)
+        record["reference_relmse_floor"] = self.measure.floor
         record["warm_up_seconds"].update(outcome.warm_up_seconds)
         if outcome.ladder is not None:
             record["pt_ladder"] = outcome.ladder
         self.seconds["methods"] = outcome.method_seconds
         self.seconds["metrics"] = outcome.metric_seconds
-        self.reference = reference
-        self.reference_variance, self.reference_degrees_of_freedom = _bias_test_reference(reference_record)
         return record
+
+    def _reference(self, loaded, spp, progress):
+        """The reference at ``spp`` (its cached passes, the missing ones rendered until the deadline) as a
+        :class:`ReferenceMeasure`; a black one is refused."""
+        from ..rendering.baseline import cached_reference
+
+        config = self.config
+        image, record = cached_reference(loaded, config.kind, spp=spp, max_depth=config.max_depth,
+                                         seed=config.reference_seed, progress=progress,
+                                         cache_directory=self.cache_directory, scheduler=self.scheduler,
+                                         setup=self.setup, deadline=self.reference_deadline, epsilon=RELMSE_EPSILON)
+        if not np.any(image > 0):
+            raise ValueError(f"the reference of scene {self.setup.spec.name!r} for kind {config.kind!r} at max depth "
+                             f"{config.max_depth} is black (every pixel 0 after {record['spp']} spp): no light "
+                             "reaches the camera along the paths this kind counts, so no image can be compared; "
+                             "check the scene's emitters, the kind, or raise --max-depth")
+        mask = getattr(self, "measure", None)
+        return ReferenceMeasure(image=image, floor_map=reference_floor_map(image, record["variance"]),
+                                spp=int(record["spp"]), record=record, mask=None if mask is None else mask.mask)
+
+    def _converge(self, folder, loaded, configuration, progress):
+        """``--reference-spp auto``: add passes until the floor is at most :data:`AUTO_FLOOR_SHARE` of the smallest
+        debiased headline relMSE among the judged cells, or the minutes run out; every cell measured again
+        against each longer reference. Returns ``compare.json``'s ``reference_target``."""
+        measured_again = 0
+        for _ in range(AUTO_ROUNDS):
+            smallest = smallest_judged_error(folder.cells().values(), configuration, self.measure.floor)
+            floor = self.measure.floor
+            target = None if smallest is None else AUTO_FLOOR_SHARE * smallest
+            out_of_time = self.reference_deadline is not None and time.monotonic() >= self.reference_deadline
+            if floor is None or target is None or floor <= target or out_of_time:
+                break
+            needed = reference_spp_for_floor(floor, self.measure.spp, target)
+            if progress:
+                print(f"compare: reference floor {floor:.3g} is above {AUTO_FLOOR_SHARE:g} x the smallest debiased "
+                      f"error {smallest:.3g}: adding passes up to {needed} spp", file=sys.stderr)
+            longer = self._reference(loaded, needed, progress)
+            if longer.spp <= self.measure.spp:
+                break
+            self.measure = longer
+            measured_again += remeasure_cells(folder, self.measure)
+        smallest = smallest_judged_error(folder.cells().values(), configuration, self.measure.floor)
+        floor = self.measure.floor
+        target = None if smallest is None else AUTO_FLOOR_SHARE * smallest
+        return {"share": AUTO_FLOOR_SHARE, "smallest_debiased_error": smallest, "target_floor": target,
+                "floor": floor, "spp": self.measure.spp,
+                "met": bool(floor is not None and target is not None and floor <= target),
+                "minutes": (self.config.reference_minutes if self.config.reference_minutes is not None
+                            else AUTO_DEFAULT_MINUTES), "cells_measured_again": measured_again}
 
     def report(self, folder, state, record):
         """Equal-time columns and summary, every table and figure, and ``compare.json`` completed."""
         config, baseline = self.config, baseline_name()
         rows = _load_rows(folder, [baseline] + record["config"]["methods"])
-        fit = add_equal_time_columns(rows, baseline=baseline)
-        summary = summarize(rows, fit, baseline=baseline)
 
         def image_of(row):
             return np.load(folder.path_of(f"{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy"))
 
-        record["bias"] = bias_record(rows, image_of, self.reference, self.reference_variance,
-                                     self.reference_degrees_of_freedom)
-        add_bias_fractions(summary, record["bias"])
-        record["pt_fit"] = None if fit is None else {
-            "intercept_seconds": fit.intercept, "seconds_per_spp": fit.slope, "time_relative_residual": fit.time_residual,
-            "relmse_per_seed": {str(seed): {"c": c, "floor": floor} for seed, (c, floor) in fit.relmse.items()},
-            "spp_range": list(fit.spp_range)}
+        variance, degrees = self.measure.bias_test_variance()
+        record["bias"] = bias_record(rows, image_of, self.measure.image, variance, degrees)
+        fit, summary = judge(rows, baseline=baseline, reference_spp=self.measure.spp, bias=record["bias"])
+        record["pt_fit"] = fit_record(fit)
         report_start = time.perf_counter()
-        write_comparison_outputs(folder, rows, self.reference, config, self.setup.spec.name, methods=record["methods"],
+        write_comparison_outputs(folder, rows, self.measure.image, config, self.setup.spec.name, methods=record["methods"],
                                  summary=summary, fit=record["pt_fit"], epsilon=RELMSE_EPSILON,
                                  image_of=image_of, provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
         report_seconds = time.perf_counter() - report_start
@@ -562,11 +656,87 @@ def _load_rows(folder, methods):
     return in_comparison_order([record["row"] for record in folder.cells().values()], methods)
 
 
-def _bias_test_reference(reference_record):
-    """The reference's per-pixel variance of its mean and its degrees of freedom (passes - 1) for the bias test;
-    ``(None, None)``, an exact reference, when it has one pass (no variance)."""
-    key, variance = reference_record["key"], reference_record["variance"]
-    passes = -(-key["spp"] // key["pass_spp"])
-    if passes < 2 or not np.all(np.isfinite(variance)):
-        return None, None
-    return variance, passes - 1
+@dataclass(frozen=True)
+class ReferenceMeasure:
+    """The reference a comparison measures against, and the measurement of an image against it.
+
+    Attributes
+    ----------
+    image : ndarray, shape (height, width, 3)
+    floor_map : ndarray or None
+        The reference's own noise in each pixel's relMSE term
+        (:func:`~sparselt.experiments.quality.reference_floor_map`); None for a one-pass reference.
+    spp : int
+        The samples per pixel it holds (whole passes).
+    record : dict
+        :func:`~sparselt.rendering.baseline.cached_reference`'s record.
+    mask : ndarray of bool or None
+        The caustic mask (``relmse_caustic``).
+    """
+
+    image: object
+    floor_map: object
+    spp: int
+    record: dict
+    mask: object = None
+
+    def __call__(self, image):
+        """The quality columns of ``image`` (:func:`~sparselt.experiments.quality.quality`) and ``reference_spp``."""
+        return dict(quality(image, self.image, self.mask, self.floor_map), reference_spp=self.spp)
+
+    @property
+    def floor(self):
+        """The reference's relMSE floor (the mean of its floor map), None when unknown."""
+        return None if self.floor_map is None else float(np.mean(self.floor_map))
+
+    def bias_test_variance(self):
+        """The per-pixel variance of the reference's mean and its degrees of freedom (passes - 1) for the bias
+        test; ``(None, None)``, an exact reference, with one pass."""
+        passes, variance = self.record["passes"], self.record["variance"]
+        if passes < 2 or not np.all(np.isfinite(variance)):
+            return None, None
+        return variance, passes - 1
+
+    def summary(self):
+        """``compare.json``'s ``reference`` record: the cache key, spp, passes, time, machines and floor."""
+        keys = ("key", "spp", "requested_spp", "passes", "seconds", "seconds_this_run", "machines", "cached", "path")
+        return dict({key: self.record[key] for key in keys if key in self.record}, relmse_floor=self.floor)
+
+
+#: Columns of earlier protocols that a measurement against a new reference replaces.
+STALE_COLUMNS = ("relmse_debiased", "reference_limited")
+
+
+def remeasure_cells(folder, measure):
+    """Measure again, from their images, the finished cells measured against another reference; their
+    records rewritten. Returns how many."""
+    count = 0
+    for name, cell in folder.cells().items():
+        row = cell["row"]
+        if row.get("reference_spp") == measure.spp and "relmse_trimmed" in row:
+            continue
+        image = np.load(folder.path_of(f"{IMAGES}/{name}.npy"))
+        row = {key: value for key, value in row.items() if key not in STALE_COLUMNS}
+        row.update(measure(image))
+        folder.record_cell(name, dict(cell, row=row))
+        count += 1
+    return count
+
+
+def smallest_judged_error(cells, configuration, floor):
+    """The smallest debiased headline relMSE (mean over seeds) among the cells a comparison judges: every
+    row's at the run's budgets (PT's ladder rungs beyond them excluded); None without such cells.
+
+    A cell at or below the reference's noise counts as half the floor (the next round measures it again).
+    """
+    rows = [cell["row"] for cell in cells if cell["row"]["spp"] in configuration["spps"]
+            and cell["row"]["method"] in configuration["methods"] + [baseline_name()]]
+    if not rows:
+        return None
+    metric = headline_metric(rows)
+    groups = {}
+    for row in rows:
+        groups.setdefault((row["method"], row["spp"]), []).append(row[metric] - row_floor(row, metric))
+    means = [float(np.mean(values)) for values in groups.values()]
+    half = 0.5 * floor if floor else 0.0
+    return min(max(value, half) for value in means) if means else None

@@ -22,7 +22,6 @@ from ..methods import TIME_PHASES, Budget, run_timed
 from ..methods.contract import check_result
 from ..methods.variants import variant_file_name
 from .equal_time import NOISY_TIMING_RATIO
-from .quality import quality
 
 IMAGES = "images"
 
@@ -140,10 +139,9 @@ class CellRunner:
     the ladder covers the cells an earlier run finished too.
     """
 
-    def __init__(self, folder, context, config, reference, mask, exposure, progress, *, floor, rows_so_far):
+    def __init__(self, folder, context, config, measure, exposure, progress, *, rows_so_far):
         self.folder, self.context, self.config = folder, context, config
-        self.reference, self.mask, self.exposure, self.progress = reference, mask, exposure, progress
-        self.floor = floor  # the reference's relMSE floor, or None when unknown (a one-pass reference)
+        self.measure, self.exposure, self.progress = measure, exposure, progress  # image -> quality columns
         self.rows_so_far = tuple(rows_so_far)
         self.seconds = 0.0
         self.warm_up_seconds = {}
@@ -235,7 +233,7 @@ class CellRunner:
         seconds = check_result(method, result, context, budget, wall_seconds=wall)
         if partial is None:
             metrics_start = time.perf_counter()
-            cells_row = _row(row, spp, seed, result, seconds, self.reference, self.mask)
+            cells_row = _row(row, spp, seed, result, seconds, self.measure)
             self.metric_seconds += time.perf_counter() - metrics_start  # harness time, never a method's
             self.folder.write_image(f"{IMAGES}/{name}", result.image, exposure=self.exposure)
             partial = {"row": cells_row, "details": result.details, "phases": [], "totals": [], "wall_seconds": [],
@@ -278,9 +276,6 @@ class CellRunner:
         median = sorted(range(len(totals)), key=totals.__getitem__)[len(totals) // 2]
         seconds = partial["phases"][median]
         row = dict(partial["row"], **{f"seconds_{phase}": seconds[phase] for phase in TIME_PHASES})
-        if self.floor is not None:
-            row.update(reference_relmse_floor=self.floor, relmse_debiased=row["relmse"] - self.floor,
-                       reference_limited=bool(row["relmse"] < 2 * self.floor))
         row.update(seconds_total=float(np.median(totals)), seconds_total_min=min(totals),
                    seconds_total_max=max(totals), timing_repeats=len(totals),
                    timing_noisy=bool(max(totals) > NOISY_TIMING_RATIO * min(totals)))
@@ -292,11 +287,11 @@ class CellRunner:
         return row["seconds_total"]
 
 
-def _row(name, spp, seed, result, seconds, reference, mask=None):
+def _row(name, spp, seed, result, seconds, measure):
     row = {"method": name, "spp": spp, "seed": seed, "seconds_total": sum(seconds.values())}
     row.update({f"seconds_{phase}": seconds[phase] for phase in TIME_PHASES})
     row["path_samples"] = int(result.path_samples)
-    row.update(quality(result.image, reference, mask))
+    row.update(measure(result.image))
     return row
 
 

@@ -16,27 +16,46 @@ with the median of its repeated timings):
    runs of the same seed. A time beyond the ladder has no value (nothing is
    extrapolated): the harness extends the ladder until it passes every
    method's time, within a cap.
-2. **Ratios and intervals.** Per (method, spp): the mean relMSE over seeds
-   and its 95% Student-t interval; the ratio of that mean to PT's mean relMSE
-   at the same (per-seed median) times, with a 95% interval by the delta
-   method on the log ratio (t quantile, ``n - 1`` degrees of freedom; the
-   seeds are paired; SSIM as PT's over the method's, HDR-FLIP as the
-   method's over PT's, so that below 1 is better for all three), widened by the timing's own uncertainty
-   (:func:`timing_uncertainty`: PT read at the method's time divided and
-   multiplied by ``1 + d``). Both relMSEs first lose the reference's own floor
-   (``reference_relmse_floor``, from the spread of the reference's passes):
-   the ratio is of ``relmse_debiased``. Where either is not above the floor
-   the verdict is ``reference-limited``. The same for SSIM (PT's over the method's, so that
-   below 1 is better for both).
-3. **Verdict.** ``wins`` when the relMSE ratio's interval lies below 1,
-   ``loses`` when above, ``within noise`` when it covers 1, ``one seed`` when
-   there is no interval. Verdicts are per budget; sentences never average
-   over budgets.
-4. **Equal-quality speed-up.** PT's time to reach the method's mean relMSE
-   (from the fits, seeds averaged), over the method's time; its interval from
-   the relMSE interval. Where the method's relMSE is below PT's floor, PT
-   cannot reach it: the speed-up is infinite.
-5. **Bias.** Per (method, spp) over its seeds: the fraction of pixels that
+2. **Metrics.** The headline is ``relmse_trimmed``: relMSE with the top
+   0.1% of per-pixel errors discarded (at least one pixel), the field's
+   convention (:data:`HEADLINE_METRIC`); untrimmed relMSE, SSIM and HDR-FLIP
+   are judged beside it, and ``verdicts_disagree`` says when the trimmed,
+   untrimmed and FLIP verdicts differ. ``outlier_share`` is the share of
+   relMSE the discarded pixels held; a cell whose mean share is above 0.5 is
+   ``outlier_dominated``. Folders measured before the trimmed metric fall
+   back to ``relmse`` (``headline_metric`` says which).
+3. **Ratios and intervals.** Per (method, spp) and metric: the mean over
+   seeds and its 95% Student-t interval; the ratio of the method's mean to
+   PT's mean at the same (per-seed median) times, with a 95% interval by the
+   delta method on the log ratio (t quantile, ``n - 1`` degrees of freedom;
+   the seeds are paired; SSIM as PT's over the method's, HDR-FLIP as the
+   method's over PT's, so that below 1 is better for all), widened by the
+   timing's own uncertainty (:func:`timing_uncertainty`: PT read at the
+   method's time divided and multiplied by ``1 + d``). Both relMSEs first
+   lose the reference's own floor (the variance of the reference's mean from
+   the spread of its passes, over relMSE's denominator; in the trimmed
+   metric, over the pixels it keeps): the ratio is of debiased values.
+4. **Reference-limited.** A cell is ``reference-limited``, with no ratio
+   and no speed-up, when the reference's floor is at least half
+   (:data:`REFERENCE_LIMITED_SHARE`) of the method's mean measured value or
+   of PT's at the same time, i.e. when the debiased error is no larger than
+   the reference's own noise, or when a seed's debiased value is not
+   positive. ``reference_spp_needed`` is the reference that would resolve it,
+   from the floor's 1/spp law
+   (:func:`~sparselt.rendering.baseline.reference_spp_for_floor`).
+5. **Verdict.** ``wins`` when the ratio's interval lies below 1, ``loses``
+   when above, ``within noise`` when it covers 1, ``one seed`` when there is
+   no interval. Verdicts are per budget; sentences never average over
+   budgets.
+6. **Equal-quality speed-up** (:func:`equal_quality_speedup`). PT's time to
+   reach the method's debiased headline value, from its fits, over the
+   method's time: a decreasing function of the ratio alone that is 1 at a
+   ratio of 1, so its interval is the ratio's interval mapped through it
+   and the speed-up's verdict is the ratio's. PT's fits are never read beyond
+   its ladder: where PT would need more spp than its largest rung the
+   speed-up is a lower bound (``speedup_bound`` ``'>'``, the value at that
+   rung), never infinite.
+7. **Bias.** Per (method, spp) over its seeds: the fraction of pixels that
    Welch's t-test against the reference finds biased, Benjamini-Hochberg at
    1% (:func:`bias_record`, :func:`sparselt.analysis.bias.pixel_bias_test`),
    and the luminance ratio's mean with its 95% Student-t interval.
@@ -55,6 +74,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..rendering.baseline import reference_spp_for_floor
 from ..report.comparison_rows import group_mean, method_spp_groups
 
 #: Two-sided 95% intervals.
@@ -110,6 +130,36 @@ def verdict(low, high):
     return "within noise"
 
 
+#: The headline metric of a comparison's verdicts and speed-ups: relMSE with the top 0.1% of per-pixel errors
+#: discarded (the field's convention); folders measured before it existed fall back to ``relmse``.
+HEADLINE_METRIC = "relmse_trimmed"
+#: The relMSE metrics a comparison judges, each with the row column holding the reference's floor in it.
+RELMSE_METRICS = {"relmse_trimmed": "reference_relmse_floor_trimmed", "relmse": "reference_relmse_floor"}
+#: A cell is reference-limited when the reference's floor is at least this share of its (or PT's) measured mean:
+#: its debiased error is then no larger than the reference's own noise.
+REFERENCE_LIMITED_SHARE = 0.5
+#: Rows whose top 0.1% of pixels hold more than this share of their relMSE are marked (a few pixels decide it).
+OUTLIER_DOMINATED_SHARE = 0.5
+
+
+def headline_metric(rows):
+    """:data:`HEADLINE_METRIC` when every row has it, else ``'relmse'`` (a folder measured before it)."""
+    return HEADLINE_METRIC if rows and all(row.get(HEADLINE_METRIC) not in ("", None) for row in rows) else "relmse"
+
+
+def judged_metrics(rows):
+    """The relMSE metrics of :data:`RELMSE_METRICS` that every row has, headline first."""
+    return [metric for metric in RELMSE_METRICS if rows and all(row.get(metric) not in ("", None) for row in rows)]
+
+
+def row_floor(row, metric):
+    """The reference's floor in ``metric`` for ``row`` (0 when the reference had no variance)."""
+    value = row.get(RELMSE_METRICS[metric], "")
+    if value in ("", None) and metric != "relmse":
+        value = row.get("reference_relmse_floor", "")
+    return float(value) if value not in ("", None) and math.isfinite(float(value)) else 0.0
+
+
 @dataclass(frozen=True)
 class BaselineFit:
     """Path tracing's time and relMSE against spp, fitted on its ladder (see the module docstring).
@@ -120,8 +170,9 @@ class BaselineFit:
         ``t = intercept + slope * spp`` (seconds).
     time_residual : float
         Root-mean-square relative residual of the time fit.
-    relmse : dict
-        ``{seed: (c, floor)}``: ``relMSE = c / spp + floor``.
+    fits : dict
+        ``{metric: {seed: (c, floor)}}`` for each relMSE metric of
+        :data:`RELMSE_METRICS` the rows have: ``value = c / spp + floor``.
     ssim, flip : dict
         ``{seed: [(spp, value), ...]}`` sorted by spp (``flip`` empty for rows without FLIP).
     spp_range : tuple of int
@@ -132,17 +183,25 @@ class BaselineFit:
         is larger. Between a rung's fitted and measured times PT's values are
         those of the rung itself (its spp is clamped to the ladder): PT then
         had at least the method's time, which can only favour PT.
+    floors : dict
+        ``{metric: floor}``: the reference's floor in PT's rows (their median).
     """
 
     intercept: float
     slope: float
     time_residual: float
-    relmse: dict
+    fits: dict
     ssim: dict
     spp_range: tuple
     reached_seconds: float
     lowest_seconds: float
     flip: dict = field(default_factory=dict)
+    floors: dict = field(default_factory=dict)
+
+    @property
+    def relmse(self):
+        """``{seed: (c, floor)}`` of the untrimmed relMSE."""
+        return self.fits.get("relmse", {})
 
     def spp_at(self, seconds):
         """PT's spp at ``seconds`` from the time fit, clamped to the ladder's range."""
@@ -156,12 +215,17 @@ class BaselineFit:
         """Whether ``seconds`` lies within the ladder's times (no extrapolation at either end)."""
         return self.lowest_seconds * (1 - 1e-9) <= seconds <= self.reached_seconds * (1 + 1e-9)
 
-    def relmse_at(self, seconds, seed):
-        """PT's relMSE at ``seconds`` for ``seed`` (its own seed's fit); ``nan`` beyond the ladder."""
-        if not self.covers(seconds) or seed not in self.relmse:
+    def value_at(self, metric, seconds, seed):
+        """PT's ``metric`` at ``seconds`` for ``seed`` (its own seed's fit); ``nan`` beyond the ladder."""
+        fits = self.fits.get(metric, {})
+        if not self.covers(seconds) or seed not in fits:
             return math.nan
-        c, floor = self.relmse[seed]
+        c, floor = fits[seed]
         return c / self.spp_at(seconds) + floor
+
+    def relmse_at(self, seconds, seed):
+        """PT's relMSE at ``seconds`` for ``seed``; ``nan`` beyond the ladder."""
+        return self.value_at("relmse", seconds, seed)
 
     def ssim_at(self, seconds, seed):
         """PT's SSIM at ``seconds``: interpolated in log spp on the seed's ladder."""
@@ -178,13 +242,24 @@ class BaselineFit:
         spp = self.spp_at(seconds)
         return float(np.interp(math.log(spp), [math.log(p) for p, _ in points], [v for _, v in points]))
 
-    def seconds_for_relmse(self, relmse):
-        """PT's time to reach ``relmse`` with the seeds' mean fit; ``inf`` at or below its floor."""
-        c = float(np.mean([value[0] for value in self.relmse.values()]))
-        floor = float(np.mean([value[1] for value in self.relmse.values()]))
-        if not relmse > floor:
+    def mean_fit(self, metric="relmse"):
+        """``(c, floor)`` of ``metric`` averaged over the seeds."""
+        fits = self.fits[metric].values()
+        return float(np.mean([value[0] for value in fits])), float(np.mean([value[1] for value in fits]))
+
+    def spp_for(self, metric, value):
+        """PT's spp to reach ``value`` of ``metric`` with the seeds' mean fit, unclamped; ``inf`` at or below its
+        fitted floor."""
+        c, floor = self.mean_fit(metric)
+        if not value > floor:
             return math.inf
-        return self.seconds_at(c / (relmse - floor))
+        return c / (value - floor)
+
+    def seconds_for_relmse(self, relmse, metric="relmse"):
+        """PT's time to reach ``relmse`` with the seeds' mean fit, unclamped (the model, not a verdict); ``inf``
+        at or below its floor. Verdicts use :func:`equal_quality_speedup`, which never reads beyond the ladder."""
+        spp = self.spp_for(metric, relmse)
+        return math.inf if math.isinf(spp) else self.seconds_at(spp)
 
 
 def fit_relmse(spps, relmses):
@@ -233,8 +308,9 @@ def fit_baseline(rows, baseline):
     """The :class:`BaselineFit` of the baseline's rows (at least two spp), or None.
 
     A rung's time is the median over seeds of its cells' (median) times; the
-    line is :func:`fit_time`'s. Raises nothing; fewer than two budgets give
-    None (no equal-time values).
+    line is :func:`fit_time`'s. Every relMSE metric the rows have
+    (:func:`judged_metrics`) is fitted per seed. Raises nothing; fewer than
+    two budgets give None (no equal-time values).
     """
     pt = [row for row in rows if row["method"] == baseline]
     spps = sorted({row["spp"] for row in pt})
@@ -242,29 +318,33 @@ def fit_baseline(rows, baseline):
         return None
     times = [float(np.median([row["seconds_total"] for row in pt if row["spp"] == spp])) for spp in spps]
     intercept, slope, residual = fit_time(spps, times)
-    relmse, ssim, flip = {}, {}, {}
+    metrics = judged_metrics(pt)
+    fits, ssim, flip = {metric: {} for metric in metrics}, {}, {}
     for seed in sorted({row["seed"] for row in pt}):
         seed_rows = sorted((row for row in pt if row["seed"] == seed), key=lambda row: row["spp"])
         if len(seed_rows) >= 2:
-            relmse[seed] = fit_relmse([row["spp"] for row in seed_rows], [row["relmse"] for row in seed_rows])
+            for metric in metrics:
+                fits[metric][seed] = fit_relmse([row["spp"] for row in seed_rows], [row[metric] for row in seed_rows])
             ssim[seed] = [(row["spp"], row["ssim"]) for row in seed_rows]
             if all("flip" in row for row in seed_rows):
                 flip[seed] = [(row["spp"], row["flip"]) for row in seed_rows]
+    floors = {metric: float(np.median([row_floor(row, metric) for row in pt])) for metric in metrics}
     # The ladder covers from its fastest to its slowest rung, measured or fitted, whichever reaches further.
-    return BaselineFit(intercept=intercept, slope=slope, time_residual=residual, relmse=relmse,
+    return BaselineFit(intercept=intercept, slope=slope, time_residual=residual, fits=fits,
                        ssim=ssim, flip=flip, spp_range=(spps[0], spps[-1]),
                        reached_seconds=max(intercept + slope * spps[-1], times[-1]),
-                       lowest_seconds=min(intercept + slope * spps[0], times[0]))
+                       lowest_seconds=min(intercept + slope * spps[0], times[0]), floors=floors)
 
 
 def add_equal_time_columns(rows, *, baseline="pt"):
-    """Add PT's quality at each row's time (``relmse_pt_equal_time``, ``ssim_pt_equal_time``); return the fit.
+    """Add PT's quality at each row's time (``relmse_pt_equal_time``, ``relmse_trimmed_pt_equal_time``,
+    ``ssim_pt_equal_time``, ``flip_pt_equal_time``); return the fit.
 
     Parameters
     ----------
     rows : list of dict
         A comparison's rows (``method``, ``spp``, ``seed``, ``seconds_total``,
-        ``relmse``, ``ssim``); changed in place.
+        ``relmse``, ``ssim``, and ``relmse_trimmed`` when measured); changed in place.
     baseline : str, optional
         The baseline method's name (the registry's, :func:`sparselt.methods.baseline_name`).
 
@@ -279,54 +359,82 @@ def add_equal_time_columns(rows, *, baseline="pt"):
     where the row's time lies beyond the baseline's ladder.
     """
     fit = fit_baseline(rows, baseline)
+    metrics = judged_metrics(rows)
     for row in rows:
-        row["relmse_pt_equal_time"] = row["ssim_pt_equal_time"] = row["flip_pt_equal_time"] = ""
+        for quantity in metrics + ["ssim", "flip"]:
+            row[f"{quantity}_pt_equal_time"] = ""
         if row["method"] == baseline or fit is None:
             continue
-        for quantity, value in (("relmse", fit.relmse_at(row["seconds_total"], row["seed"])),
-                                ("ssim", fit.ssim_at(row["seconds_total"], row["seed"])),
-                                ("flip", fit.flip_at(row["seconds_total"], row["seed"]))):
+        values = [(metric, fit.value_at(metric, row["seconds_total"], row["seed"])) for metric in metrics]
+        values += [("ssim", fit.ssim_at(row["seconds_total"], row["seed"])),
+                   ("flip", fit.flip_at(row["seconds_total"], row["seed"]))]
+        for quantity, value in values:
             if math.isfinite(value):
                 row[f"{quantity}_pt_equal_time"] = value
     return fit
 
 
-SUMMARY_COLUMNS = ("method", "spp", "seeds", "seconds_total", "seconds_total_min", "seconds_total_max",
-                   "timing_noisy", "timing_uncertainty", "relmse", "relmse_ci_low", "relmse_ci_high", "relmse_pt_equal_time",
-                   "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high", "verdict", "ssim",
-                   "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high", "ssim_verdict",
-                   "flip", "flip_pt_equal_time", "flip_ratio", "flip_ratio_ci_low", "flip_ratio_ci_high",
-                   "flip_verdict",
-                   "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high",
-                   "luminance_ratio", "luminance_ratio_ci_low", "luminance_ratio_ci_high", "bias_fraction")
+def _metric_columns(metric):
+    return (metric, f"{metric}_ci_low", f"{metric}_ci_high", f"{metric}_pt_equal_time", f"{metric}_ratio",
+            f"{metric}_ratio_ci_low", f"{metric}_ratio_ci_high", f"{metric}_verdict")
 
 
-def summarize(rows, fit, *, baseline="pt"):
+SUMMARY_COLUMNS = (("method", "spp", "seeds", "seconds_total", "seconds_total_min", "seconds_total_max",
+                    "timing_noisy", "timing_uncertainty", "headline_metric", "verdict", "speedup_equal_quality",
+                    "speedup_bound", "speedup_ci_low", "speedup_ci_high", "pt_ladder_spp", "reference_spp",
+                    "reference_spp_needed", "verdicts_disagree", "outlier_share", "outlier_dominated")
+                   + _metric_columns("relmse_trimmed") + _metric_columns("relmse")
+                   + ("ssim", "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high",
+                      "ssim_verdict", "flip", "flip_pt_equal_time", "flip_ratio", "flip_ratio_ci_low",
+                      "flip_ratio_ci_high", "flip_verdict", "luminance_ratio", "luminance_ratio_ci_low",
+                      "luminance_ratio_ci_high", "bias_fraction"))
+#: What :func:`summarize` writes into every row of a (method, spp) cell (``results.csv``'s derived columns).
+ROW_SUMMARY_COLUMNS = ("verdict", "speedup_equal_quality", "speedup_bound", "outlier_dominated")
+
+
+def summarize(rows, fit, *, baseline="pt", reference_spp=None):
     """One record per (method, spp) with :data:`SUMMARY_COLUMNS` (``summary.csv``); also fills the rows'
-    ``relmse_ratio``, ``verdict`` and ``speedup_equal_quality`` (their intervals only in the summary)."""
+    per-metric ratios (``relmse_ratio``, ``relmse_trimmed_ratio``: debiased, against PT at the row's time) and
+    :data:`ROW_SUMMARY_COLUMNS` (their intervals only in the summary).
+
+    ``reference_spp`` (the reference's samples per pixel; default the rows' ``reference_spp``) names the
+    reference a reference-limited cell would need.
+    """
+    metrics = judged_metrics(rows)
+    headline = headline_metric(rows)
+    if reference_spp is None:
+        reference_spp = next((row["reference_spp"] for row in rows if row.get("reference_spp") not in ("", None)),
+                             None)
     summary = []
     for method, spp, group in method_spp_groups(rows):
         record = dict.fromkeys(SUMMARY_COLUMNS, "")  # every record has every column, in order
-        record.update(method=method, spp=spp, seeds=len(group))
+        record.update(method=method, spp=spp, seeds=len(group), headline_metric=headline,
+                      reference_spp=reference_spp if reference_spp is not None else "")
         record["seconds_total"] = group_mean(group, "seconds_total")
         record["seconds_total_min"] = min(row.get("seconds_total_min", row["seconds_total"]) for row in group)
         record["seconds_total_max"] = max(row.get("seconds_total_max", row["seconds_total"]) for row in group)
         record["timing_noisy"] = any(bool(row.get("timing_noisy")) for row in group)
-        record["relmse"], record["relmse_ci_low"], record["relmse_ci_high"] = mean_interval(
-            [row["relmse"] for row in group])
+        for metric in metrics:
+            record[metric], record[f"{metric}_ci_low"], record[f"{metric}_ci_high"] = mean_interval(
+                [row[metric] for row in group])
+        if all(row.get("outlier_share") not in ("", None) for row in group):
+            record["outlier_share"] = group_mean(group, "outlier_share")
+            record["outlier_dominated"] = bool(record["outlier_share"] > OUTLIER_DOMINATED_SHARE)
         record["ssim"] = group_mean(group, "ssim")
         record["flip"] = group_mean(group, "flip") if all("flip" in row for row in group) else ""
         if all(row.get("luminance_ratio") not in ("", None) for row in group):
             record["luminance_ratio"], record["luminance_ratio_ci_low"], record["luminance_ratio_ci_high"] = (
                 mean_interval([row["luminance_ratio"] for row in group]))
-        _compare_with_baseline(record, group, fit, method == baseline)
+        _compare_with_baseline(record, group, fit, method == baseline, metrics, headline)
         summary.append(record)
         for row in group:
-            floor = row.get("reference_relmse_floor", 0.0) or 0.0
-            row["relmse_ratio"] = ((row["relmse"] - floor) / (row["relmse_pt_equal_time"] - floor)
-                                   if row.get("relmse_pt_equal_time") not in ("", None) else "")
-            row["verdict"] = record["verdict"]
-            row["speedup_equal_quality"] = record["speedup_equal_quality"]
+            for metric in metrics:
+                floor = row_floor(row, metric)
+                pt_value = row.get(f"{metric}_pt_equal_time")
+                row[f"{metric}_ratio"] = ((row[metric] - floor) / (pt_value - floor)
+                                          if pt_value not in ("", None) and pt_value - floor > 0 else "")
+            for column in ROW_SUMMARY_COLUMNS:
+                row[column] = record[column]
     return summary
 
 
@@ -345,45 +453,63 @@ def timing_uncertainty(group, fit):
     return float(math.hypot(spread, fit.time_residual))
 
 
-def _compare_with_baseline(record, group, fit, is_baseline):
-    empty = dict.fromkeys(("relmse_pt_equal_time", "relmse_ratio", "relmse_ratio_ci_low", "relmse_ratio_ci_high",
-                           "ssim_pt_equal_time", "ssim_ratio", "ssim_ratio_ci_low", "ssim_ratio_ci_high",
-                           "flip_pt_equal_time", "flip_ratio", "flip_ratio_ci_low", "flip_ratio_ci_high",
-                           "speedup_equal_quality", "speedup_ci_low", "speedup_ci_high"), "")
-    record.update(empty, verdict="baseline" if is_baseline else "no PT value", ssim_verdict="", flip_verdict="")
+def equal_quality_speedup(fit, metric, ratio, seconds, floor):
+    """PT's time to reach ``ratio`` times its own debiased ``metric`` at ``seconds``, over ``seconds``.
+
+    Parameters
+    ----------
+    fit : BaselineFit
+    metric : str
+        A relMSE metric of ``fit.fits``.
+    ratio : float
+        The method's debiased value over PT's at the method's time (or a bound of its interval).
+    seconds : float
+        The method's (mean) time.
+    floor : float
+        The reference's floor in ``metric``.
+
+    Returns
+    -------
+    (float, str)
+        The speed-up and its bound: ``''`` within PT's ladder; ``'>'`` when
+        PT would need more than its ladder's largest spp (the value is then
+        the speed-up at that rung: a lower bound, never infinite); ``'<'``
+        when it would need fewer than its smallest.
+
+    Notes
+    -----
+    PT's debiased value needed is ``ratio * (c / spp(seconds) + f - floor)``
+    (``c / spp + f`` its seeds' mean fit), reached at ``spp = c / (floor +
+    needed - f)``. At ``ratio = 1`` that is PT's own spp at ``seconds`` and
+    the speed-up is 1: the speed-up is a decreasing function of the ratio
+    alone, so its interval is the ratio's interval mapped through it, and
+    the two verdicts agree.
+    """
+    c, fitted_floor = fit.mean_fit(metric)
+    own = c / fit.spp_at(seconds) + fitted_floor - floor
+    target = floor + ratio * own - fitted_floor
+    spp = c / target if target > 0 else math.inf
+    lowest, highest = fit.spp_range
+    if spp > highest:
+        return fit.seconds_at(highest) / seconds, ">"
+    if spp < lowest:
+        return fit.seconds_at(lowest) / seconds, "<"
+    return fit.seconds_at(spp) / seconds, ""
+
+
+def _compare_with_baseline(record, group, fit, is_baseline, metrics, headline):
+    record.update(verdict="baseline" if is_baseline else "no PT value")
     if is_baseline or fit is None:
         return
-    pt_relmse = [row.get("relmse_pt_equal_time") for row in group]
+    for metric in metrics:
+        _judge_metric(record, group, fit, metric)
+    record["verdict"] = record.get(f"{headline}_verdict") or "no PT value"
+    if record["verdict"] == "reference-limited":
+        record["reference_spp_needed"] = _reference_needed(record, group, fit, headline)
+    others = {record.get(f"{metric}_verdict") for metric in metrics} | {record.get("flip_verdict")}
+    others.discard("")
+    record["verdicts_disagree"] = len(others) > 1
     pt_ssim = [row.get("ssim_pt_equal_time") for row in group]
-    if any(value in ("", None) for value in pt_relmse):
-        return
-    record["relmse_pt_equal_time"] = float(np.mean(pt_relmse))
-    floors = {row.get("reference_relmse_floor") or 0.0 for row in group}  # one reference per comparison
-    if len(floors) != 1:
-        raise ValueError(f"the seeds of {record.get('method')!r} at spp {record.get('spp')} were measured against "
-                         f"references of different floors {sorted(floors)}; a comparison has one reference")
-    floor = floors.pop()
-    numerator = np.array([row["relmse"] for row in group]) - floor
-    denominator = np.array(pt_relmse, dtype=np.float64) - floor
-    if np.any(numerator <= 0) or np.any(denominator <= 0):
-        # Within the reference's own noise: the debiased relMSE says nothing; no win or loss is claimed.
-        record.update(relmse_ratio=float(np.mean(numerator) / np.mean(denominator)), verdict="reference-limited")
-    else:
-        ratio, low, high = ratio_interval(numerator, denominator)
-        # The time is uncertain too: PT's value is read at the method's time t, which moves between runs. Read it
-        # at t / (1 + d) and t (1 + d), d the timing uncertainty, and keep the wider bounds.
-        spread = timing_uncertainty(group, fit)
-        record["timing_uncertainty"] = spread
-        if math.isfinite(low) and spread > 0:
-            late = [fit.relmse_at(min(row["seconds_total"] * (1 + spread), fit.reached_seconds), row["seed"]) - floor
-                    for row in group]
-            early = [fit.relmse_at(max(row["seconds_total"] / (1 + spread), fit.lowest_seconds),
-                                   row["seed"]) - floor for row in group]
-            if all(value > 0 for value in early + late):
-                low = min(low, ratio_interval(numerator, early)[1])
-                high = max(high, ratio_interval(numerator, late)[2])
-        record.update(relmse_ratio=ratio, relmse_ratio_ci_low=low, relmse_ratio_ci_high=high,
-                      verdict=verdict(low, high))
     if not any(value in ("", None) for value in pt_ssim):
         record["ssim_pt_equal_time"] = float(np.mean(pt_ssim))
         ratio, low, high = ratio_interval(pt_ssim, [row["ssim"] for row in group])  # PT over method: < 1 is better
@@ -395,13 +521,100 @@ def _compare_with_baseline(record, group, fit, is_baseline):
         ratio, low, high = ratio_interval([row["flip"] for row in group], pt_flip)  # method over PT: < 1 is better
         record.update(flip_ratio=ratio, flip_ratio_ci_low=low, flip_ratio_ci_high=high,
                       flip_verdict=verdict(low, high))
-    seconds = record["seconds_total"]
-    record["speedup_equal_quality"] = fit.seconds_for_relmse(record["relmse"]) / seconds
-    low, high = record["relmse_ci_low"], record["relmse_ci_high"]
-    if math.isfinite(low) and math.isfinite(high):
-        # A lower relMSE needs more PT time: the interval's bounds swap.
-        record["speedup_ci_low"] = fit.seconds_for_relmse(high) / seconds
-        record["speedup_ci_high"] = fit.seconds_for_relmse(max(low, 0.0)) / seconds
+        record["verdicts_disagree"] = len(others | {record["flip_verdict"]}) > 1
+    ratio = record.get(f"{headline}_ratio")
+    if record["verdict"] in ("wins", "loses", "within noise", "one seed") and isinstance(ratio, float):
+        floor = row_floor(group[0], headline)
+        seconds = record["seconds_total"]
+        record["speedup_equal_quality"], record["speedup_bound"] = equal_quality_speedup(
+            fit, headline, ratio, seconds, floor)
+        if record["speedup_bound"]:
+            record["pt_ladder_spp"] = fit.spp_range[1] if record["speedup_bound"] == ">" else fit.spp_range[0]
+        low, high = record[f"{headline}_ratio_ci_low"], record[f"{headline}_ratio_ci_high"]
+        if isinstance(low, float) and math.isfinite(low) and math.isfinite(high):
+            # A lower ratio is a larger speed-up: the interval's bounds swap.
+            record["speedup_ci_low"] = equal_quality_speedup(fit, headline, high, seconds, floor)[0]
+            record["speedup_ci_high"] = equal_quality_speedup(fit, headline, low, seconds, floor)[0]
+
+
+def _judge_metric(record, group, fit, metric):
+    """``metric``'s ratio to PT at equal time, its interval (widened by the timing's uncertainty) and verdict."""
+    pt_values = [row.get(f"{metric}_pt_equal_time") for row in group]
+    if any(value in ("", None) for value in pt_values):
+        return
+    record[f"{metric}_pt_equal_time"] = float(np.mean(pt_values))
+    floors = {row_floor(row, metric) for row in group} if metric == "relmse" else {0.0}
+    if len(floors) != 1:
+        raise ValueError(f"the seeds of {record.get('method')!r} at spp {record.get('spp')} were measured against "
+                         f"references of different floors {sorted(floors)}; a comparison has one reference")
+    own_floors = np.array([row_floor(row, metric) for row in group])
+    measured = np.array([row[metric] for row in group], dtype=np.float64)
+    pt_measured = np.array(pt_values, dtype=np.float64)
+    numerator, denominator = measured - own_floors, pt_measured - own_floors
+    limited = (np.any(numerator <= 0) or np.any(denominator <= 0)
+               or own_floors.mean() >= REFERENCE_LIMITED_SHARE * measured.mean()
+               or own_floors.mean() >= REFERENCE_LIMITED_SHARE * pt_measured.mean())
+    if limited:
+        # Within the reference's own noise: the debiased values say nothing; no win, loss or speed-up is claimed.
+        record[f"{metric}_verdict"] = "reference-limited"
+        return
+    ratio, low, high = ratio_interval(numerator, denominator)
+    # The time is uncertain too: PT's value is read at the method's time t, which moves between runs. Read it
+    # at t / (1 + d) and t (1 + d), d the timing uncertainty, and keep the wider bounds.
+    spread = timing_uncertainty(group, fit)
+    record["timing_uncertainty"] = spread
+    if math.isfinite(low) and spread > 0:
+        late = [fit.value_at(metric, min(row["seconds_total"] * (1 + spread), fit.reached_seconds), row["seed"])
+                - row_floor(row, metric) for row in group]
+        early = [fit.value_at(metric, max(row["seconds_total"] / (1 + spread), fit.lowest_seconds), row["seed"])
+                 - row_floor(row, metric) for row in group]
+        if all(value > 0 for value in early + late):
+            low = min(low, ratio_interval(numerator, early)[1])
+            high = max(high, ratio_interval(numerator, late)[2])
+    record.update({f"{metric}_ratio": ratio, f"{metric}_ratio_ci_low": low, f"{metric}_ratio_ci_high": high,
+                   f"{metric}_verdict": verdict(low, high)})
+
+
+def _reference_needed(record, group, fit, metric):
+    """The reference spp whose floor would resolve a reference-limited cell: the floor at most half the smaller
+    of the method's and PT's measured means (:data:`REFERENCE_LIMITED_SHARE`), from the floor's 1/spp law;
+    ``''`` without a reference spp or a floor."""
+    floor = float(np.mean([row_floor(row, metric) for row in group]))
+    spp = record.get("reference_spp")
+    if not floor > 0 or spp in ("", None):
+        return ""
+    debiased = min(record[metric], record[f"{metric}_pt_equal_time"]) - floor
+    if not debiased > 0:
+        # At or below the reference's noise: at least a twice longer reference; the rerun says how much more.
+        return reference_spp_for_floor(floor, int(spp), floor / 2)
+    return reference_spp_for_floor(floor, int(spp), debiased * REFERENCE_LIMITED_SHARE / (1 - REFERENCE_LIMITED_SHARE))
+
+
+def judge(rows, *, baseline="pt", reference_spp=None, bias=None):
+    """The equal-time protocol on a comparison's rows: PT's fits and the rows' equal-time columns
+    (:func:`add_equal_time_columns`), the summary (:func:`summarize`) and the bias fractions
+    (:func:`add_bias_fractions`, from ``bias``, a :func:`bias_record`). The one call of ``compare``,
+    :func:`sparselt.load_comparison` and the committed experiments' re-judging.
+
+    Returns
+    -------
+    (BaselineFit or None, list of dict)
+    """
+    fit = add_equal_time_columns(rows, baseline=baseline)
+    summary = summarize(rows, fit, baseline=baseline, reference_spp=reference_spp)
+    add_bias_fractions(summary, bias, rows)
+    return fit, summary
+
+
+def fit_record(fit):
+    """PT's fits as ``compare.json``'s ``pt_fit`` holds them (None without a fit)."""
+    if fit is None:
+        return None
+    record = {"intercept_seconds": fit.intercept, "seconds_per_spp": fit.slope,
+              "time_relative_residual": fit.time_residual, "spp_range": list(fit.spp_range)}
+    for metric, fits in fit.fits.items():
+        record[f"{metric}_per_seed"] = {str(seed): {"c": c, "floor": floor} for seed, (c, floor) in fits.items()}
+    return record
 
 
 #: The bias test's level and multiple-comparison correction in every comparison (:func:`bias_record`).
@@ -450,19 +663,27 @@ def bias_record(rows, image_of, reference, reference_variance, reference_degrees
             "reference_degrees_of_freedom": reference_degrees_of_freedom, "cells": cells}
 
 
-def add_bias_fractions(summary, record):
-    """Fill the summary's ``bias_fraction`` from a :func:`bias_record` (None: a folder without one, left empty).
+def add_bias_fractions(summary, record, rows=()):
+    """Fill the summary's and the ``rows``' ``bias_fraction`` from a :func:`bias_record` (None: a folder without
+    one, left empty).
 
     A cell whose seeds changed since the record was made (a rerun that added seeds) is left empty.
     """
     if not record:
         return summary
     fractions = {(cell["method"], cell["spp"], cell["seeds"]): cell["bias_fraction"] for cell in record["cells"]}
+    seeds = {}
     for entry in summary:
         entry["bias_fraction"] = fractions.get((entry["method"], entry["spp"], entry["seeds"]), "")
+        seeds[entry["method"], entry["spp"]] = entry["bias_fraction"]
+    for row in rows:
+        row["bias_fraction"] = seeds.get((row["method"], row["spp"]), "")
     return summary
 
 
-__all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "NOISY_TIMING_RATIO", "SUMMARY_COLUMNS", "VERDICTS",
-           "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record", "fit_baseline",
-           "fit_relmse", "fit_time", "mean_interval", "ratio_interval", "summarize", "timing_uncertainty", "verdict"]
+__all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "HEADLINE_METRIC", "NOISY_TIMING_RATIO",
+           "OUTLIER_DOMINATED_SHARE", "REFERENCE_LIMITED_SHARE", "RELMSE_METRICS", "ROW_SUMMARY_COLUMNS",
+           "SUMMARY_COLUMNS", "VERDICTS", "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record",
+           "equal_quality_speedup", "fit_baseline", "fit_record", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
+           "mean_interval", "ratio_interval", "row_floor", "summarize",
+           "timing_uncertainty", "verdict"]

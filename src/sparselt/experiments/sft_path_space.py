@@ -41,7 +41,8 @@ from ..methods.options import resolve_options
 from ..methods.sft_reconstruction import SftOptions, reconstruct
 from ..provenance import environment_record
 from ..recovery.path_space import largest_energy_fraction
-from ..rendering.baseline import METHOD_SEED_LIMIT, cached_reference
+from ..rendering import baseline
+from ..rendering.baseline import METHOD_SEED_LIMIT
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
 from ..thesis.tables import THESIS_SHAPE, table_6_1
 from .protocol import Experiment, run_experiment
@@ -177,8 +178,8 @@ def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
     given = {"sparsity": sparsity, "snr": config.snr}
     folder.write_json("table61.json", {"config": config.record(), "sparsity": sparsity,
                                        "relmse_epsilon": RELMSE_EPSILON, "provenance": environment_record()})
-    reference, reference_record = cached_reference(scene, config.kind, spp=config.reference_spp,
-                                                   max_depth=config.max_depth, seed=0, progress=progress)
+    reference, reference_record = baseline.cached_reference(scene, config.kind, spp=config.reference_spp,
+                                                            max_depth=config.max_depth, seed=0, progress=progress)
     exposure = reference_exposure(reference)
     folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
     pt = get_method("pt")

@@ -1,6 +1,16 @@
-"""Plain path tracing with Mitsuba's own ``path`` integrator: the equal-time baseline.
+"""The comparison reference: Mitsuba's own ``path`` integrator in independent 64-spp passes, cached per pass.
 
-Every equal-time comparison measures against :func:`cached_reference`; ``sparselt render`` is :mod:`sparselt.experiments.render`.
+Every equal-time comparison measures against :func:`cached_reference`
+(thesis 8.1.1): the mean of ``ceil(spp / 64)`` passes, each with its own seed
+(:func:`reference_pass_seed`, disjoint from every method seed), and the
+per-pixel variance of that mean from the passes' spread (Jung et al. 2020),
+whose share of every relMSE against it is :func:`reference_relmse_floor`.
+Each pass is cached as its own verified file
+(:mod:`sparselt.rendering.reference_passes`), so a longer reference renders
+only the passes it lacks, a killed run resumes, a deadline stops at the
+passes that exist, and the passes may be rendered on a Dask cluster with the
+same bytes. :func:`reference_spp_for_floor` sizes a reference for a target
+floor. ``sparselt render`` is :mod:`sparselt.experiments.render`.
 """
 
 from __future__ import annotations
@@ -8,18 +18,21 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import math
+import numbers
 import os
 import sys
+import time
 
 import numpy as np
 
+from ..cell_statistics import variance_from_sums
+from ..checks import check_integer, check_positive_finite
+from ..digest import bytes_digest, digest
 from ..measurement import progress_bar
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
-from ..cell_statistics import variance_from_sums
-from ..checks import check_integer
-from ..digest import bytes_digest, digest
 from .identity import scene_identity
-
+from .reference_passes import PassJob, read_pass, render_passes, write_pass
 
 MAXIMUM_WAVEFRONT = 2**32 - 1
 
@@ -89,8 +102,55 @@ def reference_quantity(kind, max_depth):
     raise ValueError(f"unknown signal kind {kind!r}")
 
 
-def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, cache_directory=None):
-    """The reference image of a comparison: Mitsuba ``path`` at ``spp``, cached by content.
+#: Bumped when the layout of a cache entry changes, so that older entries are simply not used. 2: one verified
+#: file per pass (``passes/``), no ``spp`` in the key, the Mitsuba variant in it.
+REFERENCE_CACHE_FORMAT = 2
+
+
+def reference_key(loaded, kind, *, max_depth, seed):
+    """What identifies a reference's passes: scene content, camera, resolution, quantity, seed, renderer.
+
+    The key holds no spp: a reference of any length is a prefix of the same
+    passes (see :func:`cached_reference`).
+    """
+    from .mitsuba import versions
+    from .mitsuba.runtime import modules
+
+    depth, subtracted = reference_quantity(kind, max_depth)
+    key = {
+        "format": REFERENCE_CACHE_FORMAT,
+        "scene": {"name": loaded.spec.name, "identity": scene_identity(loaded.spec)["digest"],
+                  "camera": dataclasses.asdict(loaded.camera)},
+        "resolution": [loaded.width, loaded.height],
+        "kind": kind,
+        "max_depth": max_depth,
+        "depth": depth,
+        "subtracted_depth": subtracted,
+        "seed": seed,
+        "pass_spp": REFERENCE_PASS_SPP,
+        "pass_seeds": "reference_pass_seed",  # not the earlier seed * 65536 + i, which PT's cells could replay
+        "variant": modules()[0].variant(),
+        "versions": versions(),
+    }
+    return json.loads(json.dumps(key))  # as read back from reference.json (tuples become lists)
+
+
+def _check_cluster_setup(setup, loaded, key):
+    """The setup a cluster's workers load must be the scene ``loaded`` is: same content, variant."""
+    from .setup import SceneSetup
+
+    if not isinstance(setup, SceneSetup):
+        raise TypeError(f"setup must be a SceneSetup (the workers load the scene from it), got "
+                        f"{type(setup).__name__}")
+    if setup.scene_identity["digest"] != key["scene"]["identity"] or setup.variant != key["variant"]:
+        raise ValueError(f"setup (scene {setup.scene!r}, variant {setup.variant!r}) is not the loaded scene "
+                         f"{loaded.spec.name!r} (variant {key['variant']!r}): give the SceneSetup the scene was "
+                         "loaded from")
+
+
+def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, cache_directory=None,
+                     scheduler=None, setup=None, deadline=None, epsilon=0.01):
+    """The reference image of a comparison: the mean of Mitsuba ``path`` passes, each cached by content.
 
     Parameters
     ----------
@@ -99,132 +159,239 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     kind : str
         Signal kind; decides the rendered quantity (:func:`reference_quantity`).
     spp : int
-        Samples per pixel, rendered in passes of :data:`REFERENCE_PASS_SPP`
-        with a progress bar.
+        Samples per pixel asked for, rounded up to whole passes of
+        :data:`REFERENCE_PASS_SPP` (``ceil(spp / 64)`` passes).
     max_depth, seed : int
         Longest path and seed (pass ``i`` uses Mitsuba's seed :func:`reference_pass_seed` ``(seed, i)``, disjoint
         from every method seed).
+    progress : bool
+        A progress bar over the passes.
     cache_directory : str, optional
         Default :func:`reference_cache_directory`.
+    scheduler : str, optional
+        Render the missing passes on this Dask cluster (``tcp://host:port``),
+        each written to the cache as it lands. Needs ``setup``.
+    setup : SceneSetup, optional
+        The picklable setup ``loaded`` was loaded from; each worker loads it
+        at ``loaded``'s resolution, once per worker process.
+    deadline : float, optional
+        A :func:`time.monotonic` time: once it has passed no new pass is
+        started (beyond the first two, so that a floor exists), and the
+        reference is the passes that exist, contiguous from pass 0.
+    epsilon : float
+        The relMSE epsilon of ``record['relmse_floor']`` (:func:`reference_relmse_floor`).
 
     Returns
     -------
     image : ndarray, shape (height, width, 3), float32
     record : dict
-        The cache key's contents, ``seconds`` of rendering, ``cached`` (whether
-        this call found it in the cache), ``path`` of the cached image and
-        ``variance``: the per-pixel variance of the reference's mean from the
-        spread of its passes (NaN with one pass; see :func:`reference_relmse_floor`).
+        ``key`` (:func:`reference_key`), ``spp`` (64 x the passes used),
+        ``requested_spp``, ``requested_passes``, ``passes`` (used),
+        ``complete`` (every requested pass used), ``deadline_reached``,
+        ``pass_spp``, ``seconds`` (the used passes' render seconds, whenever
+        they were rendered), ``seconds_this_run`` (the render seconds of the
+        passes this call rendered), ``passes_rendered`` (their number),
+        ``machines`` (sorted hosts that rendered the used passes),
+        ``variance`` (float32, the per-pixel variance of the mean from the
+        passes' spread; NaN with one pass), ``relmse_floor`` (None when
+        unknown), ``cached`` (no pass was rendered by this call), ``folder``
+        and ``path`` (``image.npy``, the image as returned).
+
+    Raises
+    ------
+    ValueError
+        A bad ``spp``, ``seed``, ``kind``, ``deadline`` or ``epsilon``; more
+        samples per pass than Mitsuba can count (:func:`check_wavefront`);
+        ``scheduler`` without ``setup``, or a ``setup`` of another scene; a
+        pass with NaN or infinite pixels (nothing of it is written).
+    TypeError
+        A value of the wrong type.
 
     Notes
     -----
+    The image is the mean of passes ``0 .. P-1`` accumulated in float64 in
+    pass-index order, so its bytes do not depend on where or in which order
+    the passes were rendered (Mitsuba's ``path`` is bit-deterministic for a
+    seed across processes and thread counts). With ``m = 64`` spp per pass
+    and pass means ``x_i`` the variance of the mean is
+    ``sum_i m (x_i - mean)^2 / (P - 1) / (m P)`` per pixel and channel
+    (Jung et al. 2020; thesis 8.1.1).
+
     The key hashes the scene's content identity
     (:func:`~sparselt.rendering.identity.scene_identity`: an XML file with
     every file it references and its ``-D`` parameters, or a built-in scene's
     description and generator code), the resolved camera (lens and focus
-    included), resolution, kind, depth, spp, seed and the Mitsuba and Dr.Jit
-    versions: a repeated comparison re-renders nothing, and an edited scene
-    is rendered again. Entries are written atomically (image first, record
-    last, with the image's SHA-256); an entry without its record is not used,
-    and an unreadable or garbled one is rendered again and replaced, with a
-    note on standard error.
+    included), resolution, kind, depth, seed, variant and the Mitsuba and
+    Dr.Jit versions, but not the spp: a longer reference continues a shorter
+    one. Each pass is ``passes/{i:05d}.npy`` with its record
+    ``passes/{i:05d}.json`` (SHA-256, seed, seconds, machine) written after
+    it, both atomically; a pass without its record is missing, and one that
+    does not match its record is rendered again with a note on standard
+    error. ``image.npy``, ``image.exr``, ``variance.npy`` and
+    ``reference.json`` are written beside them for convenience; the passes
+    are the truth.
     """
-    from ..image_io import write_exr
-    from .mitsuba import versions
-
     check_integer("reference spp", spp, 1, REFERENCE_PASS_SPP * REFERENCE_MAX_PASSES)
     check_integer("reference seed", seed, 0, REFERENCE_SEED_LIMIT - 1)
+    epsilon = check_positive_finite(epsilon, "epsilon", hint="the relMSE epsilon of the reference's floor")
+    if deadline is not None:
+        if isinstance(deadline, bool) or not isinstance(deadline, numbers.Real):
+            raise TypeError(f"deadline must be None or a time.monotonic() value, got {deadline!r}")
+        if not math.isfinite(deadline):
+            raise ValueError(f"deadline must be None or a finite time.monotonic() value, got {deadline!r}")
+    if scheduler is not None and setup is None:
+        raise ValueError(f"scheduler {scheduler!r} needs setup, the SceneSetup the scene was loaded from: the "
+                         "workers cannot receive a Mitsuba scene and load it from the setup")
     depth, subtracted = reference_quantity(kind, max_depth)
-    key = {
-        "scene": {"name": loaded.spec.name, "identity": scene_identity(loaded.spec)["digest"],
-                  "camera": dataclasses.asdict(loaded.camera)},
-        "resolution": [loaded.width, loaded.height],
-        "kind": kind,
-        "max_depth": max_depth,
-        "depth": depth,
-        "subtracted_depth": subtracted,
-        "spp": spp,
-        "seed": seed,
-        "pass_spp": REFERENCE_PASS_SPP,
-        "pass_seeds": "reference_pass_seed",  # not the earlier seed * 65536 + i, which PT's cells could replay
-        "per_pass_variance": True,
-        "versions": versions(),
-    }
-    key = json.loads(json.dumps(key))  # as read back from reference.json (tuples become lists)
-    key_digest = digest(key)
-    folder = os.path.join(cache_directory or reference_cache_directory(), key_digest)
-    image_path, record_path = os.path.join(folder, "image.npy"), os.path.join(folder, "reference.json")
-    variance_path = os.path.join(folder, "variance.npy")
-    if os.path.isfile(record_path) and os.path.isfile(image_path) and os.path.isfile(variance_path):
-        try:
-            record, image = _read_cache_entry(record_path, image_path)
-            variance = _read_variance(record, variance_path, image.shape)
-        except (OSError, ValueError, EOFError) as error:
-            print(f"sparselt: note: the cached reference {folder!r} is unreadable ({error}); rendering it again",
-                  file=sys.stderr)
-        else:
-            if record.get("key") == key and image.shape == (loaded.height, loaded.width, 3):
-                return image, dict(record, cached=True, path=image_path, variance=variance)
+    check_wavefront((loaded.width, loaded.height), REFERENCE_PASS_SPP)
+    key = reference_key(loaded, kind, max_depth=max_depth, seed=seed)
+    if setup is not None:
+        _check_cluster_setup(setup, loaded, key)
+    folder = os.path.join(cache_directory or reference_cache_directory(), digest(key))
+    shape = (loaded.height, loaded.width, 3)
+    requested = -(-spp // REFERENCE_PASS_SPP)
+    minimum = min(2, requested)
+    seeds = [reference_pass_seed(seed, index) for index in range(requested)]
 
-    passes = [min(REFERENCE_PASS_SPP, spp - start) for start in range(0, spp, REFERENCE_PASS_SPP)]
-    total = np.zeros((loaded.height, loaded.width, 3), dtype=np.float64)
-    squares = np.zeros_like(total)
-    seconds = 0.0
-    bar = progress_bar(progress, total=spp, description=f"reference {loaded.spec.name} {spp} spp", unit="spp")
+    records = {}
+    for index in range(requested):
+        found = read_pass(folder, index, shape=shape, seed=seeds[index], spp=REFERENCE_PASS_SPP)
+        if found is not None:
+            records[index] = found[1]
+
+    def contiguous():
+        count = 0
+        while count in records:
+            count += 1
+        return count
+
+    def out_of_time():
+        return deadline is not None and time.monotonic() >= deadline
+
+    def should_stop():
+        return out_of_time() and contiguous() >= minimum
+
+    missing = [index for index in range(requested) if index not in records]
+    if out_of_time():
+        missing = [index for index in missing if index < minimum]
+    rendered = []
+    bar = progress_bar(progress and bool(missing), total=requested * REFERENCE_PASS_SPP, unit="spp",
+                       description=f"reference {loaded.spec.name} {requested * REFERENCE_PASS_SPP} spp",
+                       initial=(requested - len(missing)) * REFERENCE_PASS_SPP)
+
+    def land(index, image, seconds, machine):
+        if not np.all(np.isfinite(image)):
+            raise ValueError(f"the reference render of {loaded.spec.name!r} has NaN or infinite pixels in pass "
+                             f"{index} (seed {seeds[index]}); check the scene. Finished passes are kept")
+        records[index] = write_pass(folder, index, image, seed=seeds[index], spp=REFERENCE_PASS_SPP,
+                                    seconds=seconds, machine=machine)
+        rendered.append(index)
+        if bar is not None:
+            bar.update(REFERENCE_PASS_SPP)
+
+    def make_job(index, concurrency=None, scene_key=None):
+        return PassJob(setup=setup, resolution=(loaded.width, loaded.height), scene_key=scene_key, index=index,
+                       pass_seed=seeds[index], pass_spp=REFERENCE_PASS_SPP, depth=depth, subtracted_depth=subtracted,
+                       concurrency=concurrency)
+
     try:
-        for index, pass_spp in enumerate(passes):
-            pass_seed = reference_pass_seed(seed, index)
-            check_wavefront((loaded.width, loaded.height), pass_spp)
-            image, elapsed = loaded.render_path(pass_spp, depth, pass_seed)
-            pass_image = image.astype(np.float64)
-            seconds += elapsed
-            if subtracted is not None:
-                image, elapsed = loaded.render_path(pass_spp, subtracted, pass_seed)
-                pass_image -= image.astype(np.float64)
-                seconds += elapsed
-            total += pass_spp * pass_image
-            squares += pass_spp * pass_image * pass_image
-            if bar is not None:
-                bar.update(pass_spp)
+        if scheduler is None or not missing:
+            render_passes(missing, scene=loaded, make_job=make_job, land=land, should_stop=should_stop)
+        else:
+            from ..distributed import dask_client, tasks_per_host
+
+            scene_key = f"{setup.digest()}-{loaded.width}x{loaded.height}"
+            with dask_client(scheduler=scheduler, say=lambda text: print(text, file=sys.stderr) if progress else None) \
+                    as client:
+                concurrency = tasks_per_host(client)
+                render_passes(missing, scene=loaded, client=client, land=land, should_stop=should_stop,
+                              make_job=lambda index: make_job(index, concurrency, scene_key))
     finally:
         if bar is not None:
             bar.close()
-    image = (total / spp).astype(np.float32)
-    # The variance of the reference's mean per pixel and channel, from the spread of its passes: the per-sample
-    # variance estimated as sum_i m_i (x_i - mean)^2 / (passes - 1), divided by spp. NaN with a single pass.
-    if len(passes) > 1:
-        variance = (variance_from_sums(total, squares, spp, denominator=len(passes) - 1) / spp).astype(np.float32)
-    else:
-        variance = np.full(image.shape, np.nan, dtype=np.float32)
+
+    used = min(contiguous(), requested)
+    image, variance = _mean_of_passes(folder, used, shape, seeds)
     if not np.all(np.isfinite(image)):
         raise ValueError(f"the reference render of {loaded.spec.name!r} has NaN or infinite pixels; check the scene")
-    os.makedirs(folder, exist_ok=True)
-    if os.path.lexists(record_path):
-        os.remove(record_path)  # the entry is invalid until its new record is written
-    buffer = io.BytesIO()
-    np.save(buffer, image)
-    atomic_write_bytes(image_path, buffer.getvalue())
-    write_exr(os.path.join(folder, "image.exr"), image)
-    variance_buffer = io.BytesIO()
-    np.save(variance_buffer, variance)
-    atomic_write_bytes(variance_path, variance_buffer.getvalue())
-    record = {"key": key, "image_sha256": bytes_digest(buffer.getvalue()),
-              "variance_sha256": bytes_digest(variance_buffer.getvalue()), "seconds": seconds,
-              "provenance": environment_record()}
-    write_json(record_path, record)
-    return image, dict(record, cached=False, path=image_path, variance=variance)
+    used_records = [records[index] for index in range(used)]
+    floor = reference_relmse_floor(image, variance, epsilon=epsilon)
+    record = {
+        "key": key,
+        "spp": used * REFERENCE_PASS_SPP,
+        "requested_spp": spp,
+        "requested_passes": requested,
+        "passes": used,
+        "complete": used == requested,
+        "deadline_reached": used < requested,
+        "pass_spp": REFERENCE_PASS_SPP,
+        "seconds": float(sum(entry["seconds"] for entry in used_records)),
+        "seconds_this_run": float(sum(records[index]["seconds"] for index in rendered)),
+        "passes_rendered": len(rendered),
+        "machines": sorted({entry["machine"] for entry in used_records}),
+        "relmse_floor": None if math.isnan(floor) else floor,
+    }
+    path = _write_outputs(folder, image, variance, dict(record, pass_sha256=[entry["sha256"] for entry in used_records]))
+    return image, dict(record, variance=variance, cached=not rendered, folder=folder, path=path)
 
 
-def _read_variance(record, variance_path, shape):
-    """The cached per-pixel variance of a reference's mean; ValueError if it does not match its record."""
-    with open(variance_path, "rb") as handle:
-        data = handle.read()
-    if bytes_digest(data) != record.get("variance_sha256"):
-        raise ValueError(f"{variance_path!r} does not match the SHA-256 its record holds")
-    variance = np.load(io.BytesIO(data), allow_pickle=False)
-    if variance.shape != shape:
-        raise ValueError(f"{variance_path!r} holds an array of shape {variance.shape}, not {shape}")
-    return variance
+def _mean_of_passes(folder, passes, shape, seeds):
+    """The mean of passes ``0 .. passes-1`` (float32) and the variance of that mean (float32, NaN for one pass),
+    accumulated in float64 in pass-index order from the verified files."""
+    total = np.zeros(shape, dtype=np.float64)
+    squares = np.zeros_like(total)
+    for index in range(passes):
+        found = read_pass(folder, index, shape=shape, seed=seeds[index], spp=REFERENCE_PASS_SPP)
+        if found is None:
+            raise ValueError(f"reference pass {index} in {folder!r} changed while the reference was being made "
+                             "(another process?); run again")
+        total += REFERENCE_PASS_SPP * found[0]
+        squares += REFERENCE_PASS_SPP * found[0] * found[0]
+    spp = passes * REFERENCE_PASS_SPP
+    image = (total / spp).astype(np.float32)
+    # The variance of the reference's mean per pixel and channel, from the spread of its passes: the per-sample
+    # variance estimated as sum_i m (x_i - mean)^2 / (passes - 1), divided by spp. NaN with a single pass.
+    if passes > 1:
+        variance = (variance_from_sums(total, squares, spp, denominator=passes - 1) / spp).astype(np.float32)
+    else:
+        variance = np.full(shape, np.nan, dtype=np.float32)
+    return image, variance
+
+
+def _write_outputs(folder, image, variance, summary):
+    """``image.npy``, ``image.exr``, ``variance.npy`` and ``reference.json`` for the passes used, atomically,
+    unless the folder already holds exactly these; return the image's path."""
+    from ..image_io import write_exr
+
+    image_bytes, variance_bytes = io.BytesIO(), io.BytesIO()
+    np.save(image_bytes, image)
+    np.save(variance_bytes, variance)
+    summary = dict(summary, image_sha256=bytes_digest(image_bytes.getvalue()),
+                   variance_sha256=bytes_digest(variance_bytes.getvalue()))
+    image_path, record_path = os.path.join(folder, "image.npy"), os.path.join(folder, "reference.json")
+    variance_path = os.path.join(folder, "variance.npy")
+    try:
+        written = read_json(record_path)
+        same = all(written.get(name) == summary[name] for name in ("key", "pass_sha256", "image_sha256",
+                                                                   "variance_sha256"))
+        same = same and all(_file_digest(path) == summary[name] for path, name in (
+            (image_path, "image_sha256"), (variance_path, "variance_sha256")))
+    except (OSError, ValueError, AttributeError):
+        same = False
+    if not same:
+        os.makedirs(folder, exist_ok=True)
+        if os.path.lexists(record_path):
+            os.remove(record_path)  # the outputs are stale until their new summary is written
+        atomic_write_bytes(image_path, image_bytes.getvalue())
+        write_exr(os.path.join(folder, "image.exr"), image)
+        atomic_write_bytes(variance_path, variance_bytes.getvalue())
+        write_json(record_path, dict(summary, provenance=environment_record()))
+    return image_path
+
+
+def _file_digest(path):
+    with open(path, "rb") as handle:
+        return bytes_digest(handle.read())
 
 
 def reference_relmse_floor(reference, variance, *, epsilon):
@@ -239,18 +406,39 @@ def reference_relmse_floor(reference, variance, *, epsilon):
     return float(np.mean(np.asarray(variance, dtype=np.float64) / (reference * reference + epsilon)))
 
 
-def _read_cache_entry(record_path, image_path):
-    """A reference cache entry's record and image; ValueError if either is garbled (the image is checked
-    against the SHA-256 its record holds)."""
-    record = read_json(record_path)
-    if not isinstance(record, dict):
-        raise ValueError(f"{record_path!r} does not hold a record")
-    with open(image_path, "rb") as handle:
-        data = handle.read()
-    expected = record.get("image_sha256")
-    if expected is not None and bytes_digest(data) != expected:
-        raise ValueError(f"{image_path!r} does not match the SHA-256 its record holds")
-    image = np.load(io.BytesIO(data), allow_pickle=False)
-    if image.dtype != np.float32 or image.ndim != 3:
-        raise ValueError(f"{image_path!r} holds a {image.dtype} array of shape {image.shape}, not a float32 image")
-    return record, image
+def reference_spp_for_floor(floor, spp, target_floor):
+    """The reference spp whose relMSE floor would be at most ``target_floor``: a multiple of 64, at least ``spp``.
+
+    Parameters
+    ----------
+    floor : float
+        The floor (:func:`reference_relmse_floor`) measured at ``spp``; positive.
+    spp : int
+        The spp that floor was measured at.
+    target_floor : float
+        The floor wanted; positive.
+
+    Returns
+    -------
+    int
+        ``ceil(spp * floor / target_floor / 64) * 64``, and at least ``spp``
+        rounded up to whole passes.
+
+    Raises
+    ------
+    ValueError, TypeError
+        A floor or target that is not positive and finite, an spp below 1.
+
+    Notes
+    -----
+    The floor is the mean of ``variance / (reference^2 + epsilon)`` and the
+    variance is that of a mean of independent passes, so it falls as
+    ``1 / spp``: ``floor(s) = floor * spp / s`` (Jung et al. 2020; thesis
+    8.1.1). The estimate is itself noisy (the floor of a few passes is a
+    rough measure); sizing again from the longer reference's floor converges.
+    """
+    floor = check_positive_finite(floor, "floor", hint="the reference's relMSE floor at spp")
+    target_floor = check_positive_finite(target_floor, "target_floor", hint="the relMSE floor wanted")
+    spp = check_integer("spp", spp, 1)
+    passes = max(math.ceil(spp * floor / target_floor / REFERENCE_PASS_SPP - 1e-9), -(-spp // REFERENCE_PASS_SPP))
+    return int(passes * REFERENCE_PASS_SPP)

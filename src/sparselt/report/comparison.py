@@ -10,6 +10,9 @@ run's :class:`~sparselt.storage.folder.ExperimentFolder`:
     other key, sorted.
 ``quality_vs_time.png``, ``image_grid.png``, ``crop_grid.png``
     Thesis Figures 8.1/8.3 and 8.2/8.4 layouts (:mod:`.comparison_figures`).
+``error_maps.png``
+    Each method's per-pixel relative squared error at matched time (the image
+    grid's panels), one shared logarithmic colour scale.
 ``table_8.md``, ``table_8.csv``
     Time per phase and quality per method and spp (mean over seeds), thesis
     Tables 8.1/8.2 beside the CoSaMP methods (depth of field).
@@ -54,7 +57,14 @@ from ..thesis.tables import (
     guiding_table,
     guiding_thesis,
 )
-from .comparison_figures import crop_grid_figure, image_grid_figure, matched_pictures, quality_figure
+from .comparison_figures import (
+    crop_grid_figure,
+    error_map_figure,
+    error_maps,
+    image_grid_figure,
+    matched_pictures,
+    quality_figure,
+)
 from .comparison_rows import (
     COLUMN_ORDER,
     EXTRA_COLUMNS,
@@ -172,44 +182,98 @@ def _with_interval(record, key, digits=3):
     return _number(value, digits)
 
 
+#: A metric's name in the reports.
+METRIC_NAMES = {"relmse_trimmed": "relMSE (top 0.1% trimmed)", "relmse": "relMSE"}
+
+
 def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
     """``equal_time.md``: per method and spp, quality against PT's at the same time, with intervals and verdicts.
 
     ``summary`` holds one record per (method, spp) from the equal-time protocol
     (:func:`sparselt.experiments.equal_time.summarize`): times are medians of
     repeated runs (min-max beside), qualities means over seeds with 95%
-    intervals; relMSE ratio < 1 and SSIM ratio (PT's over the method's) < 1
-    mean better than PT at equal time.
+    intervals. The headline metric (``headline_metric``: the trimmed relMSE,
+    or relMSE for folders measured before it) decides the verdict and the
+    speed-up; the untrimmed relMSE's and FLIP's ratios and verdicts stand
+    beside it. Every ratio below 1 means better than PT at equal time.
     """
     baseline = baseline_of(methods)
+    records = [record for record in summary if record["method"] != baseline]
+    headline = records[0].get("headline_metric") or "relmse" if records else "relmse"
+    others = [metric for metric in METRIC_NAMES if metric != headline
+              and any(record.get(metric) not in ("", None) for record in records)]
     table_rows = []
-    for record in summary:
-        if record["method"] == baseline:
-            continue
+    for record in records:
         seconds = (f"{record['seconds_total']:.3f} ({record['seconds_total_min']:.3f}-"
                    f"{record['seconds_total_max']:.3f}){' noisy' if record.get('timing_noisy') else ''}")
-        table_rows.append((record["method"], [
-            str(record["spp"]), str(record["seeds"]), seconds, _with_interval(record, "relmse", 4),
-            _number(record.get("relmse_pt_equal_time", ""), 4), _with_interval(record, "relmse_ratio"),
-            record["verdict"], _with_interval(record, "ssim_ratio"), _with_interval(record, "flip_ratio"),
-            _speedup_text(record)]))
+        cells = [str(record["spp"]), str(record["seeds"]), seconds, _with_interval(record, headline, 4),
+                 _number(record.get(f"{headline}_pt_equal_time", ""), 4), _with_interval(record, f"{headline}_ratio"),
+                 _verdict_text(record)]
+        for metric in others:
+            cells.append(_ratio_and_verdict(record, metric))
+        cells += [_ratio_and_verdict(record, "flip"), _with_interval(record, "ssim_ratio"), _speedup_text(record),
+                  _outlier_text(record), _number(record.get("bias_fraction", ""), 2)]
+        table_rows.append((record["method"], cells))
+    columns = (["spp", "seeds", "seconds (min-max)", f"{METRIC_NAMES[headline]} [95%]", "PT same time",
+                "ratio [95%]", "verdict"] + [f"{METRIC_NAMES[metric]} ratio, verdict" for metric in others]
+               + ["FLIP ratio, verdict", "SSIM ratio [95%]", "speed-up at equal quality [95%]", "outlier share",
+                  "biased pixels"])
     return Table(
         caption="Equal-time quality against path tracing",
-        columns=["spp", "seeds", "seconds (min-max)", "relMSE [95%]", "PT relMSE same time", "relMSE ratio [95%]",
-                 "verdict", "SSIM ratio [95%]", "FLIP ratio [95%]", "speed-up at equal quality [95%]"],
-        kinds=[""] * 2 + ["ours"] * 8, rows=table_rows, label_header="method",
-        notes=[f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). PT's "
-               f"relMSE at a time comes from its fits (time = a + b spp; relMSE = c/spp + floor per seed) over "
-               f"its automatic spp ladder. Ratios: mean over seeds over PT's mean at the same times, 95% delta-"
-               f"method interval; 'wins' or 'loses' only when the interval excludes 1. SSIM ratio: PT's over the "
-               f"method's; FLIP ratio (HDR-FLIP): the method's over PT's; below 1 is better for every ratio. Speed-up: PT's time to "
-               f"reach the method's relMSE over the method's time. relMSE epsilon = {epsilon}."])
+        columns=columns, kinds=[""] * 2 + ["ours"] * (len(columns) - 2), rows=table_rows, label_header="method",
+        notes=[f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). The "
+               f"verdict and the speed-up use {METRIC_NAMES[headline]}; relMSE's epsilon = {epsilon}. PT's value "
+               f"at a time comes from its fits (time = a + b spp; relMSE = c/spp + floor per seed) over its automatic "
+               f"spp ladder. Ratios: the method's mean over seeds over PT's mean at the same times, both less the "
+               f"reference's own floor, with a 95% delta-method interval widened by the timing's uncertainty; "
+               f"'wins' or 'loses' only when the interval excludes 1. 'reference-limited': the reference's floor is "
+               f"at least half of the method's or PT's measured error, so no ratio or speed-up is claimed; the "
+               f"verdict names the reference spp that would resolve it. SSIM ratio: PT's over the method's; FLIP "
+               f"ratio (HDR-FLIP): the method's over PT's; below 1 is better for every ratio. Speed-up: PT's time to "
+               f"reach the method's error over the method's time, its interval the ratio's mapped through PT's "
+               f"fits; '>' a lower bound where PT would need more spp than its ladder ran. Outlier share: the share "
+               f"of relMSE in the top 0.1% of pixels (marked '!' above 0.5: a few pixels decide the untrimmed "
+               f"metric). Biased pixels: the fraction Welch's t-test against the reference finds biased "
+               f"(Benjamini-Hochberg at 1%)."])
+
+
+def _verdict_text(record):
+    """The headline verdict, with the reference spp a reference-limited cell needs and a disagreement mark."""
+    text = record["verdict"]
+    if text == "reference-limited" and record.get("reference_spp_needed") not in ("", None):
+        text += f" (needs a reference of about {record['reference_spp_needed']} spp)"
+    if record.get("verdicts_disagree") is True:
+        text += " *"
+    return text
+
+
+def _ratio_and_verdict(record, metric):
+    key = "flip_ratio" if metric == "flip" else f"{metric}_ratio"
+    verdict = record.get(f"{metric}_verdict", "")
+    if not verdict:
+        return "-"
+    if not isinstance(record.get(key), float):
+        return verdict
+    return f"{_with_interval(record, key)} {verdict}"
+
+
+def _outlier_text(record):
+    share = record.get("outlier_share", "")
+    if not isinstance(share, float):
+        return "-"
+    return f"{share:.2f}{' !' if record.get('outlier_dominated') is True else ''}"
 
 
 def _speedup_text(record):
+    """The equal-quality speed-up with its interval; a bound beyond PT's ladder as '> 12x (PT's ladder ends at
+    2048 spp)', never infinite."""
     value = record.get("speedup_equal_quality", "")
     if not isinstance(value, float):
         return "-"
+    bound = record.get("speedup_bound", "")
+    if bound:
+        side = "ends" if bound == ">" else "starts"
+        return f"{bound} {_number(value)}x (PT's ladder {side} at {record.get('pt_ladder_spp', '?')} spp)"
     low, high = record.get("speedup_ci_low", ""), record.get("speedup_ci_high", "")
     if isinstance(low, float) and isinstance(high, float):
         return f"{_number(value)}x [{_number(low)}, {_number(high)}]"
@@ -310,14 +374,17 @@ def equal_time_verdicts(summary, *, methods):
 _WORDING = {"wins": "wins", "loses": "loses", "within noise": "is within noise",
             "one seed": "has one seed (no interval)",
             "no PT value": "has no equal-time PT value (PT's ladder did not reach its time)",
-            "reference-limited": "is reference-limited (its relMSE or PT's is within the reference's own noise)"}
+            "reference-limited": "is reference-limited (the reference's own noise is at least half of its error or "
+                                 "PT's)"}
 
 
 def verdict_sentence(method, summary):
     """The sentence on ``method`` from its summary records, grouped by verdict with each budget's figures.
 
-    Example: "cosamp wins at 40 and 81 spp (relMSE 0.77x [0.70, 0.85] and 0.81x [0.75, 0.88] PT's at equal
-    time); is within noise at 16 spp (relMSE 1.05x [0.80, 1.38] PT's at equal time)."
+    Example: "cosamp wins at 40 and 81 spp (relMSE (top 0.1% trimmed) 0.77x [0.70, 0.85] and 0.81x [0.75, 0.88]
+    PT's at equal time; speed-up 1.3x [1.2, 1.4] and > 4x (PT's ladder ends at 4096 spp)); is within noise at
+    16 spp (...)." A reference-limited budget names the reference it needs; a budget whose untrimmed or FLIP
+    verdict differs from the headline's says so.
     """
     records = [record for record in summary if record["method"] == method]
     parts = []
@@ -326,17 +393,38 @@ def verdict_sentence(method, summary):
         if not chosen:
             continue
         spps = _and([str(record["spp"]) for record in chosen])
-        if name in ("no PT value", "reference-limited"):
+        if name == "no PT value":
             parts.append(f"{wording} at {spps} spp")
             continue
+        if name == "reference-limited":
+            needed = [f"{record['spp']} spp needs about {record['reference_spp_needed']}"
+                      for record in chosen if record.get("reference_spp_needed") not in ("", None)]
+            parts.append(f"{wording} at {spps} spp" + (f" (a reference of more spp would resolve it: "
+                                                       f"{_and(needed)})" if needed else ""))
+            continue
+        metric = METRIC_NAMES.get(chosen[0].get("headline_metric") or "relmse", "relMSE")
         figures = _and([_ratio_text(record) for record in chosen])
-        parts.append(f"{wording} at {spps} spp (relMSE {figures} PT's at equal time)")
-    return f"{method} " + "; ".join(parts) + "." if parts else f"{method}: no runs."
+        speedups = _and([_speedup_text(record) for record in chosen])
+        parts.append(f"{wording} at {spps} spp ({metric} {figures} PT's at equal time; speed-up {speedups})")
+    sentence = f"{method} " + "; ".join(parts) + "." if parts else f"{method}: no runs."
+    disagreeing = [record for record in records if record.get("verdicts_disagree") is True]
+    for record in disagreeing:
+        others = [f"{METRIC_NAMES.get(metric, 'FLIP')} {record.get(f'{metric}_verdict')}"
+                  for metric in ("relmse", "flip") if record.get(f"{metric}_verdict")
+                  and metric != record.get("headline_metric")]
+        sentence += f" At {record['spp']} spp the other metrics disagree: {_and(others)}."
+    dominated = [str(record["spp"]) for record in records if record.get("outlier_dominated") is True]
+    if dominated:
+        sentence += (f" At {_and(dominated)} spp the top 0.1% of pixels hold more than half of its relMSE (a few "
+                     "pixels decide the untrimmed metric).")
+    return sentence
 
 
 def _ratio_text(record):
-    low, high = record.get("relmse_ratio_ci_low"), record.get("relmse_ratio_ci_high")
-    text = f"{record['relmse_ratio']:.2f}x"
+    metric = record.get("headline_metric") or "relmse"
+    ratio = record.get(f"{metric}_ratio", record.get("relmse_ratio"))
+    low, high = record.get(f"{metric}_ratio_ci_low"), record.get(f"{metric}_ratio_ci_high")
+    text = f"{ratio:.2f}x"
     if isinstance(low, float) and math.isfinite(low):
         text += f" [{low:.2f}, {high:.2f}]"
     return text
@@ -348,6 +436,8 @@ def _and(items):
 
 FIGURES = (("quality_vs_time.png", "Figures 8.1/8.3 layout: relMSE and SSIM against time"),
            ("image_grid.png", "Figures 8.2/8.4 layout: the methods at matched time beside the reference"),
+           ("error_maps.png", ("Per-pixel relative squared error of each method in the image grid, against the "
+                               "reference; one logarithmic colour scale shared by all panels")),
            ("crop_grid.png", "Details where the methods disagree most"))
 LINKS = ("results.csv", "summary.csv", "equal_time.md", "table_8.md", "table_8.csv", "table_6.md", "methods.md", "compare.json")
 
@@ -476,6 +566,9 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
         matched = matched_pictures(rows, reference, image_of)
         figure("image_grid.png", image_grid_figure(*matched))
         figure("crop_grid.png", crop_grid_figure(*matched))
+        at_time, target, _ = matched
+        figure("error_maps.png", error_map_figure(at_time, target, error_maps(at_time, reference, image_of,
+                                                                               epsilon=epsilon), epsilon=epsilon))
     for stem, table in (("table_8", table_8(rows, scene, config, methods=methods, epsilon=epsilon)),
                         ("equal_time", equal_time_table(summary, methods=methods, epsilon=epsilon)),
                         ("methods", methods_table(methods, rows))):

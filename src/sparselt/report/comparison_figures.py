@@ -1,8 +1,9 @@
-"""The figures of one ``sparselt compare`` run: quality against time, the image grid, detail crops.
+"""The figures of one ``sparselt compare`` run: quality against time, the image grid, error maps, detail crops.
 
 Thesis Figures 8.1/8.3 (SSIM and relMSE against time) and 8.2/8.4 (the
-methods' images at matched time) in the thesis's layout, plus crops where the
-methods disagree most. Every function returns a matplotlib figure; the
+methods' images at matched time) in the thesis's layout, each method's
+per-pixel relative squared error at the same matched time, plus crops where
+the methods disagree most. Every function returns a matplotlib figure; the
 caller writes it (``folder.write_figure``), so nothing here touches a folder.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analysis.metrics import pixel_relative_squared_error
 from ..images import reference_exposure, srgb_tonemap
 from .comparison_rows import matched_rows, mean_curve, methods_in_order
 from .plotting import pyplot
@@ -22,6 +24,10 @@ SUPTITLE_FONT_SIZE = 12
 _GLYPH_WIDTH = 0.62
 #: Line height, in em, of multi-line titles (matplotlib's default line spacing is 1.2).
 _LINE_HEIGHT = 1.3
+#: The percentiles, over every shown error map's positive pixels, that bound the error maps' one colour scale.
+ERROR_SCALE_PERCENTILES = (1.0, 99.9)
+#: The colour map of the error maps (perceptually uniform, dark for small errors).
+ERROR_COLOUR_MAP = "inferno"
 
 
 def quality_figure(rows, scene, epsilon, summary=None, fit=None):
@@ -161,20 +167,22 @@ def _wrapped(text, width_inches, font_size):
     return textwrap.wrap(text, width=max(20, int(width_inches * 72 / (_GLYPH_WIDTH * font_size))))
 
 
-def _panel_grid(plot, columns, panel_width, image_height, title_lines, suptitle, *, left=0.1, gap_width=0.25):
+def _panel_grid(plot, columns, panel_width, image_height, title_lines, suptitle, *, left=0.1, gap_width=0.25,
+                right=0.1):
     """A figure of rows x ``columns`` image axes placed by hand, each row with room for its titles.
 
     Row ``i`` is ``title_lines[i]`` lines of :data:`TITLE_FONT_SIZE` plus the
     image, so a row's titles never reach into the images of the row above
     (``tight_layout`` cannot promise that for images of fixed aspect). The
-    suptitle is wrapped to the figure's width above the first row.
+    suptitle is wrapped to the figure's width above the first row; ``right``
+    inches stay free right of the last column (a colour bar's room).
 
     Returns
     -------
     figure : matplotlib.figure.Figure
     axes : ndarray of Axes, shape (len(title_lines), columns)
     """
-    width = left + columns * panel_width + (columns - 1) * gap_width + 0.1
+    width = left + columns * panel_width + (columns - 1) * gap_width + right
     heading = _wrapped(suptitle, width - 0.2, SUPTITLE_FONT_SIZE)
     heading_height = _text_height(len(heading), SUPTITLE_FONT_SIZE) + 0.15
     title_heights = [_text_height(count, TITLE_FONT_SIZE) + 0.12 if count else 0.0 for count in title_lines]
@@ -227,6 +235,151 @@ def image_grid_figure(matched, target, pictures):
         axis.set_yticks([])
     for axis in axes[panels:]:
         axis.set_visible(False)
+    return figure
+
+
+def error_maps(matched, reference, image_of, *, epsilon):
+    """Each matched row's per-pixel relative squared error against the reference (relMSE's per-pixel terms).
+
+    Parameters
+    ----------
+    matched : list of dict
+        The rows at matched time, as the image grid shows them
+        (:func:`matched_pictures`' first result).
+    reference : ndarray, shape (height, width, 3)
+        The linear reference image.
+    image_of : callable
+        ``image_of(row)`` returns a row's linear image.
+    epsilon : float
+        relMSE's epsilon.
+
+    Returns
+    -------
+    list of ndarray, shape (height, width)
+        :func:`sparselt.analysis.metrics.pixel_relative_squared_error`, one per
+        row: each map's mean over pixels is the row image's relMSE
+        (:func:`~sparselt.analysis.metrics.relative_mean_squared_error`).
+    """
+    return [pixel_relative_squared_error(image_of(row), reference, epsilon=epsilon) for row in matched]
+
+
+def shared_error_scale(maps, *, percentiles=ERROR_SCALE_PERCENTILES):
+    """The limits ``(low, high)`` of one logarithmic colour scale for all ``maps``: percentiles of their pixels.
+
+    Parameters
+    ----------
+    maps : sequence of ndarray
+        Non-negative error maps (:func:`error_maps`); the scale is computed
+        over all of them together, so every panel reads on the same scale.
+    percentiles : (float, float), optional
+        Lower and upper percentile, ``0 <= lower < upper <= 100`` (default
+        :data:`ERROR_SCALE_PERCENTILES`).
+
+    Returns
+    -------
+    (float, float)
+        ``0 < low < high``: the percentiles of every map's positive, finite
+        pixels (a logarithmic scale cannot show zero). When they coincide
+        (a constant error), the decade centred on that value; when no pixel
+        is positive (every image equals the reference), ``(1e-6, 1e-5)``.
+
+    Raises
+    ------
+    ValueError
+        If ``maps`` is empty, or the percentiles are not ``0 <= lower <
+        upper <= 100``.
+    """
+    if len(maps) == 0:
+        raise ValueError("shared_error_scale needs at least one error map; got none")
+    lower, upper = (float(value) for value in percentiles)
+    if not 0 <= lower < upper <= 100:
+        raise ValueError(f"percentiles must satisfy 0 <= lower < upper <= 100; got {tuple(percentiles)!r}")
+    values = np.concatenate([np.asarray(error, dtype=np.float64).ravel() for error in maps])
+    positive = values[np.isfinite(values) & (values > 0)]
+    if positive.size == 0:
+        return 1e-6, 1e-5
+    low, high = (float(value) for value in np.percentile(positive, [lower, upper]))
+    if not high > low:
+        low, high = low / np.sqrt(10.0), high * np.sqrt(10.0)
+    return low, high
+
+
+def error_map_figure(matched, target, maps, *, epsilon, scale=None):
+    """Each method's per-pixel relative squared error at matched time, in false colour on one shared log scale.
+
+    Parameters
+    ----------
+    matched : list of dict
+        The rows at matched time (:func:`matched_pictures`' first result: the
+        image grid's panels, the reference aside).
+    target : float
+        The matched time (seconds).
+    maps : list of ndarray, shape (height, width)
+        :func:`error_maps` of ``matched``, in its order.
+    epsilon : float
+        relMSE's epsilon, named on the colour bar.
+    scale : (float, float), optional
+        The colour scale's limits; default :func:`shared_error_scale` of ``maps``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        If ``matched`` is empty, ``maps`` and ``matched`` differ in length, or as :func:`shared_error_scale`.
+
+    Notes
+    -----
+    Every panel uses the same :class:`matplotlib.colors.LogNorm` and one colour
+    bar: values outside the scale are shown at its ends (the bar's
+    triangles), zeros at its lower end. Each title names the method's row,
+    spp, seconds and its relMSE (the map's mean over pixels, so the title
+    describes exactly what the panel shows).
+    """
+    if not matched:
+        raise ValueError("error_map_figure needs at least one matched row; got none")
+    if len(maps) != len(matched):
+        raise ValueError(f"error_map_figure needs one map per matched row; got {len(maps)} maps for "
+                         f"{len(matched)} rows")
+    from matplotlib.colors import LogNorm
+
+    plot = pyplot()
+    low, high = shared_error_scale(maps) if scale is None else scale
+    norm = LogNorm(vmin=low, vmax=high)
+    panels = len(matched)
+    columns = min(5, panels)
+    lines = -(-panels // columns)
+    titles = [[row["method"], f"{row['spp']} spp, {_seconds_text(row['seconds_total'])} s",
+               f"relMSE {float(np.mean(error)):.3g}"] for row, error in zip(matched, maps)]
+    height, width = np.shape(maps[0])[:2]
+    label = f"relative squared error (ε = {epsilon:g})"
+    short_label = label.replace(" (", "\n(")  # for a short bar: two lines
+    # Panels wide enough for their titles, and their rows tall enough for the colour bar's label on two lines.
+    panel_width = max(2.2, max(_text_width(title, TITLE_FONT_SIZE) for title in titles) + 0.1,
+                      _text_width(short_label.splitlines(), LABEL_FONT_SIZE) * width / (height * lines))
+    figure, axes = _panel_grid(
+        plot, columns, panel_width, panel_width * height / width, [3] * lines,
+        f"per-pixel relative squared error against the reference, one log colour scale for all panels; "
+        f"{matched_time_text(matched, target)}", right=1.25)
+    for axis, title, error in zip(axes.ravel(), titles, maps):
+        image = axis.imshow(np.clip(error, low, high), cmap=ERROR_COLOUR_MAP, norm=norm, aspect="auto",
+                            interpolation="nearest")
+        axis.set_title("\n".join(title), fontsize=TITLE_FONT_SIZE)
+    for axis in axes.ravel():
+        axis.set_xticks([])
+        axis.set_yticks([])
+    for axis in axes.ravel()[panels:]:
+        axis.set_visible(False)
+    figure_width = figure.get_size_inches()[0]
+    first, last = axes[0, columns - 1].get_position(), axes[-1, 0].get_position()
+    bar = figure.add_axes((first.x1 + 0.15 / figure_width, last.y0, 0.15 / figure_width, first.y1 - last.y0))
+    colour_bar = figure.colorbar(image, cax=bar, extend="both")
+    if _text_width([label], LABEL_FONT_SIZE) > (first.y1 - last.y0) * figure.get_size_inches()[1]:
+        label = short_label
+    colour_bar.set_label(label, fontsize=LABEL_FONT_SIZE)
+    colour_bar.ax.tick_params(labelsize=LABEL_FONT_SIZE - 1)
     return figure
 
 
@@ -294,5 +447,6 @@ def crop_grid_figure(matched, target, pictures):
     return figure
 
 
-__all__ = ["LABEL_FONT_SIZE", "SUPTITLE_FONT_SIZE", "TITLE_FONT_SIZE", "crop_grid_figure", "disagreement_crops",
-           "image_grid_figure", "matched_pictures", "matched_time_text", "quality_figure"]
+__all__ = ["ERROR_COLOUR_MAP", "ERROR_SCALE_PERCENTILES", "LABEL_FONT_SIZE", "SUPTITLE_FONT_SIZE", "TITLE_FONT_SIZE",
+           "crop_grid_figure", "disagreement_crops", "error_map_figure", "error_maps", "image_grid_figure",
+           "matched_pictures", "matched_time_text", "quality_figure", "shared_error_scale"]

@@ -202,5 +202,29 @@ def dataset_csv(dataset, columns=None, *, row_order=None):
     return Table(caption="results", label_header=header[0], columns=header[1:], rows=lines).csv()
 
 
+def read_records_csv(path):
+    """A CSV this module wrote (``results.csv``, ``summary.csv``) as typed records: each cell back to the value
+    it was written from (``True``/``False`` as booleans, whole numbers as ints, other numbers as floats, text
+    as text; an empty cell is ``''``). Six significant digits, as written."""
+    import csv
+
+    def value(text):
+        if text == "":
+            return ""
+        if text in ("True", "False"):
+            return text == "True"
+        try:
+            return int(text)
+        except ValueError:
+            pass
+        try:
+            return float(text)
+        except ValueError:
+            return text
+
+    with open(path, newline="", encoding="utf-8") as handle:
+        return [{column: value(text) for column, text in row.items()} for row in csv.DictReader(handle)]
+
+
 __all__ = ["RESULT_DIMENSIONS", "RESULT_ROW_ORDER", "SUMMARY_DIMENSIONS", "VALUE_TYPES", "dataset_csv",
-           "records_dataset", "results_dataset", "summary_dataset"]
+           "read_records_csv", "records_dataset", "results_dataset", "summary_dataset"]

@@ -11,6 +11,7 @@ from .cells import sample_cells
 from .gradients import sample_gradients
 from .guided import render_estimator, render_guided
 from .integrators import render_aovs, render_path
+from .path_classes import render_path_classes
 from .pixel_statistics import sample_pixel_statistics
 from .pixels import sample_pixels
 from .runtime import initialize, modules
@@ -28,6 +29,7 @@ class MitsubaScene:
     :mod:`~sparselt.rendering.mitsuba.pixel_statistics`,
     :mod:`~sparselt.rendering.mitsuba.gradients`,
     :mod:`~sparselt.rendering.mitsuba.guided`,
+    :mod:`~sparselt.rendering.mitsuba.path_classes`,
     :mod:`~sparselt.rendering.mitsuba.integrators`), which launches through
     :func:`~sparselt.rendering.mitsuba.launch.launch`.
 
@@ -139,6 +141,10 @@ class MitsubaScene:
     def render_guided(self, layout, map_shape, tables, densities, spp, seed, *, mode):
         """:func:`sparselt.rendering.mitsuba.guided.render_guided` on this scene."""
         return render_guided(self, layout, map_shape, tables, densities, spp, seed, mode=mode)
+
+    def render_path_classes(self, spp, max_depth, seed=0):
+        """:func:`sparselt.rendering.mitsuba.path_classes.render_path_classes` on this scene."""
+        return render_path_classes(self, spp, max_depth, seed)
 
     # -- Mitsuba's own integrators ---------------------------------------------
 

@@ -1,0 +1,98 @@
+"""Re-judge the committed comparisons of ``docs/experiments`` with the current equal-time protocol.
+
+Every comparison folder's rows (``results.csv``) go back through
+:func:`sparselt.experiments.equal_time.judge`, as ``compare`` calls it, and
+its ``results.csv`` derived columns, ``summary.csv``, ``equal_time.md/.csv``
+and ``compare.json``'s ``pt_fit`` are rewritten; every (method, spp) whose
+verdict changed is printed as a Markdown table (old, new, why), which
+``docs/experiments/README.md`` carries. Nothing renders: folders without
+per-pixel images keep their untrimmed relMSE as the headline metric.
+
+Usage: ``.venv/bin/python scripts/rejudge_experiments.py [--check]`` (``--check`` writes nothing and exits 1 if a
+folder would change).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from sparselt.experiments.equal_time import fit_record, judge
+from sparselt.provenance import write_json
+from sparselt.report.comparison import equal_time_table, results_csv, summary_csv
+from sparselt.report.comparison_rows import COLUMN_ORDER
+from sparselt.report.results import read_records_csv
+from sparselt.results import reference_spp
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
+#: The rows' columns the protocol derives (recomputed, never read back).
+DERIVED = ("relmse_pt_equal_time", "relmse_trimmed_pt_equal_time", "ssim_pt_equal_time", "flip_pt_equal_time",
+           "relmse_ratio", "relmse_trimmed_ratio", "verdict", "speedup_equal_quality", "speedup_bound",
+           "outlier_dominated", "bias_fraction")
+
+
+def rejudge(folder):
+    """``(files {name: text}, compare.json record, old summary, new summary)`` of one comparison folder."""
+    record = json.loads((folder / "compare.json").read_text())
+    rows = [{key: value for key, value in row.items() if key not in DERIVED}
+            for row in read_records_csv(folder / "results.csv")]
+    fit, summary = judge(rows, baseline="pt", reference_spp=reference_spp(record), bias=record.get("bias"))
+    record["pt_fit"] = fit_record(fit)
+    table = equal_time_table(summary, methods=record["methods"], epsilon=record.get("relmse_epsilon", 0.01))
+    files = {"results.csv": results_csv(rows, COLUMN_ORDER), "summary.csv": summary_csv(summary),
+             "equal_time.md": table.markdown(), "equal_time.csv": table.csv()}
+    old = read_records_csv(folder / "summary.csv")
+    return files, record, old, summary
+
+
+def _speedup(record):
+    value = record.get("speedup_equal_quality")
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return "-"
+    return f"{record.get('speedup_bound', '')}{value:.3g}x"
+
+
+def changes(folder, old, new):
+    """The (method, spp) whose verdict or speed-up's form changed, as Markdown rows."""
+    before = {(record["method"], record["spp"]): record for record in old}
+    lines = []
+    for record in new:
+        previous = before.get((record["method"], record["spp"]))
+        if previous is None or record["verdict"] == "baseline":
+            continue
+        old_speedup, new_speedup = _speedup(previous), _speedup(record)
+        infinite = "inf" in old_speedup
+        if previous["verdict"] != record["verdict"] or infinite or record.get("speedup_bound"):
+            lines.append(f"| {folder.relative_to(EXPERIMENTS)} | {record['method']} | {record['spp']} | "
+                         f"{previous['verdict']} ({old_speedup}) | {record['verdict']} ({new_speedup}) |")
+    return lines
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a folder would change")
+    arguments = parser.parse_args(argv)
+    table = ["| folder | method | spp | before (speed-up) | now (speed-up) |", "|---|---|---|---|---|"]
+    stale = []
+    for summary_path in sorted(EXPERIMENTS.rglob("summary.csv")):
+        folder = summary_path.parent
+        files, record, old, new = rejudge(folder)
+        table += changes(folder, old, new)
+        for name, text in files.items():
+            if not (folder / name).exists() or (folder / name).read_text() != text:
+                stale.append(f"{folder.relative_to(EXPERIMENTS)}/{name}")
+                if not arguments.check:
+                    (folder / name).write_text(text)
+        if not arguments.check:
+            write_json(folder / "compare.json", record)
+    print("\n".join(table))
+    if arguments.check and stale:
+        print(f"{len(stale)} files would change: {', '.join(stale)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
