@@ -23,7 +23,7 @@ demo: $(STAMP)
 	# 64x64 pixels (a quarter of the signal's image plane), 3 seeds and 2 timing repeats per cell, so that the
 	# verdicts carry intervals and the demo fits in 3 minutes; PT's ladder is automatic (up to 1024 spp here).
 	$(BIN)/sparselt compare --scene dof-sculptures --kind dof --shape 64,64,16,16 --methods pt,samples-mean,cosamp,cosamp-thesis,bilateral,cosamp-bilateral,oidn --spp 16,40,81 --seeds 1,2,3 --timing-repeats 2 --reference-spp 1024 --out $(DEMO)/compare --overwrite
-	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, comparison in $(DEMO)/compare (equal_time.md, summary.csv, table_8.md, quality_vs_time.png, image_grid.png)"
+	@echo "demo: pictures in $(DEMO)/pictures, sparsity analysis in $(DEMO)/analysis, comparison in $(DEMO)/compare (equal_time.md, summary.csv, table_8.md, quality_vs_time.png, image_grid.png, error_maps.png)"
 	@echo "demo: report page: file://$(CURDIR)/$(DEMO)/compare/index.html"
 
 bench: $(STAMP)

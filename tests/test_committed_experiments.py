@@ -66,7 +66,7 @@ INTEGER_COLUMNS = {"spp", "seed", "seeds", "path_samples", "timing_repeats", "re
                    "pt_ladder_spp"}
 BOOLEAN_COLUMNS = {"timing_noisy", "reference_limited", "outlier_dominated", "verdicts_disagree"}
 TEXT_COLUMNS = {"method", "verdict", "ssim_verdict", "flip_verdict", "relmse_verdict", "relmse_trimmed_verdict",
-                "headline_metric", "speedup_bound"}
+                "headline_metric", "speedup_bound", "speedup_ci_low_bound", "speedup_ci_high_bound"}
 
 #: Comparison folders of the current protocol (``summary.csv``), reproduce's nested ones included.
 COMPARISONS = sorted(path.parent for path in EXPERIMENTS.rglob("summary.csv"))

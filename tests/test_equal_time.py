@@ -279,3 +279,20 @@ def test_the_ladder_resumes_from_a_ladder_already_run():
     ladder = ladder_search(run_rung, [0.03, 0.2], smallest_budget=8, maximum_spp=4096, start=[4, 8, 16, 32])
     # A method now faster (0.03 s) than PT's smallest rung (0.04 s): the ladder extends downwards.
     assert ladder["spps"] == [2, 4, 8, 16, 32] and ran == [32, 4, 2]
+
+
+def test_the_ladder_climbs_until_pt_reaches_the_best_methods_error():
+    """Times alone would stop at 16 spp (0.2 s > 0.15 s); PT's error 1/spp reaches the best method's 0.01 only at
+    128 spp, so the ladder goes on to 128 (within its cap) and the speed-up is read, not bounded."""
+    from sparselt.experiments.comparison_cells import ladder_search
+
+    def run_rung(spp):
+        return [0.01 * spp + 0.04]
+
+    ladder = ladder_search(run_rung, [0.15], smallest_budget=8, maximum_spp=4096,
+                           rung_error=lambda spp: 1.0 / spp, target_error=0.01)
+    assert ladder["spps"][-1] == 128 and not ladder["capped"]
+    assert ladder_search(run_rung, [0.15], smallest_budget=8, maximum_spp=4096)["spps"][-1] == 16
+    capped = ladder_search(run_rung, [0.15], smallest_budget=8, maximum_spp=64,
+                           rung_error=lambda spp: 1.0 / spp, target_error=0.01)
+    assert capped["spps"][-1] == 64 and capped["capped"]

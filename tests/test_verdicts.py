@@ -115,9 +115,10 @@ def test_a_speedup_beyond_the_ladder_is_a_lower_bound_never_infinite():
         assert record["speedup_bound"] == ">" and record["pt_ladder_spp"] == 512
         assert record["speedup_equal_quality"] == pytest.approx((0.01 + 0.512) / 0.05, rel=1e-9)
         assert math.isfinite(record["speedup_ci_low"]) and math.isfinite(record["speedup_ci_high"])
+        assert record["speedup_ci_high_bound"] == ">"  # its interval's upper end too
         table = equal_time_table([record], methods=METHODS).markdown()
-        assert "> 10.4x (PT's ladder ends at 512 spp)" in table and "inf" not in table
-        assert "> 10.4x (PT's ladder ends at 512 spp)" in verdict_sentence("m", [record])
+        assert "> 10.4x [" in table and ">10.4] (PT's ladder ends at 512 spp)" in table and "inf" not in table
+        assert "(PT's ladder ends at 512 spp)" in verdict_sentence("m", [record])
 
 
 def test_the_speedup_is_one_at_a_ratio_of_one_and_decreases_with_it():
@@ -146,3 +147,38 @@ def test_the_ratio_and_the_speedup_give_the_same_verdict_under_noisy_timings(cas
     low, high = record["speedup_ci_low"], record["speedup_ci_high"]
     speedup_verdict = "wins" if low > 1 else "loses" if high < 1 else "within noise"
     assert speedup_verdict == record["verdict"], record
+
+
+def test_rows_and_cells_decided_by_a_few_pixels_are_marked():
+    rows = pt_rows() + method_rows(16, 0.05, [0.02, 0.021, 0.022])
+    for row, share in zip(rows[-3:], (0.4, 0.7, 0.9)):
+        row.update(outlier_share=share)
+    for row in rows[:-3]:
+        row.update(outlier_share=0.1)
+    _, summary = judge(rows, baseline="pt")
+    record = next(entry for entry in summary if entry["method"] == "m")
+    assert record["outlier_share"] == pytest.approx(2.0 / 3) and record["outlier_dominated"] is True
+    assert [row["outlier_dominated"] for row in rows[-3:]] == [False, True, True]
+    assert "0.67 !" in equal_time_table([record], methods=METHODS).markdown()
+    assert "more than half of its relMSE" in verdict_sentence("m", [record])
+
+
+def test_a_trimmed_metric_that_pt_does_not_follow_hands_the_headline_to_the_untrimmed_one():
+    """Sunlight through glass at a few spp: PT's trimmed relMSE rises with spp (measured on sunlit-room: 0.09 at
+    8 and 16 spp, 2.0 at 32, 4.6 at 64, 2.2 at 256) because trimming discards the only pixels that found the sun.
+    No c/spp fit describes it, so the untrimmed relMSE decides, and the table says why."""
+    rows = pt_rows(spps=(8, 16, 32, 64, 128, 256))
+    trimmed = {8: 0.088, 16: 0.084, 32: 1.97, 64: 4.59, 128: 3.27, 256: 2.18}
+    for row in rows:
+        row.update(relmse_trimmed=trimmed[row["spp"]] * (1 + 0.01 * row["seed"]), reference_relmse_floor_trimmed=0.0)
+    method = method_rows(16, 0.05, [0.02, 0.021, 0.022], relmse_trimmed=0.01, reference_relmse_floor_trimmed=0.0)
+    fit, summary = judge(rows + method, baseline="pt")
+    assert fit.residuals["relmse_trimmed"] > 0.5 > fit.residuals["relmse"]
+    record = next(entry for entry in summary if entry["method"] == "m")
+    assert record["headline_metric"] == "relmse" and record["verdict"] == record["relmse_verdict"]
+    assert "The untrimmed relMSE decides here" in equal_time_table([record], methods=METHODS).markdown()
+    clean = pt_rows(spps=(8, 16, 32, 64, 128, 256))  # a trimmed metric that follows c/spp stays the headline
+    for row in clean:
+        row.update(relmse_trimmed=0.8 * row["relmse"], reference_relmse_floor_trimmed=0.0)
+    _, summary = judge(clean + method, baseline="pt")
+    assert summary[-1]["headline_metric"] == "relmse_trimmed"

@@ -69,6 +69,7 @@ from ..results import CONFIGURATION_FILE as CONFIG_FILE
 from .comparison_cells import IMAGES, CellRunner, cell_name
 from .equal_time import (
     bias_record,
+    fit_baseline,
     fit_record,
     headline_metric,
     judge,
@@ -729,11 +730,12 @@ def smallest_judged_error(cells, configuration, floor):
 
     A cell at or below the reference's noise counts as half the floor (the next round measures it again).
     """
-    rows = [cell["row"] for cell in cells if cell["row"]["spp"] in configuration["spps"]
-            and cell["row"]["method"] in configuration["methods"] + [baseline_name()]]
+    every = [dict(cell["row"]) for cell in cells]
+    rows = [row for row in every if row["spp"] in configuration["spps"]
+            and row["method"] in configuration["methods"] + [baseline_name()]]
     if not rows:
         return None
-    metric = headline_metric(rows)
+    metric = headline_metric(rows, fit_baseline(every, baseline_name()))
     groups = {}
     for row in rows:
         groups.setdefault((row["method"], row["spp"]), []).append(row[metric] - row_floor(row, metric))

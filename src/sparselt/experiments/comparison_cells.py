@@ -32,12 +32,16 @@ def cell_name(method, spp, seed):
     return f"{variant_file_name(method)}_spp{spp}_seed{seed}"
 
 
-def ladder_search(run_rung, others, *, smallest_budget, maximum_spp, start=None):
-    """PT's automatic ladder: the rungs (spp) whose times cover every other method's time.
+def ladder_search(run_rung, others, *, smallest_budget, maximum_spp, start=None, rung_error=None,
+                  target_error=None):
+    """PT's automatic ladder: the rungs (spp) whose times cover every other method's time, and whose errors
+    reach every other method's error.
 
     PT runs at spp = s0, 2 s0, 4 s0, ... (s0 half the smallest budget, at
     least 1) until its time passes every other method's time (and at least
-    two rungs ran) or the next rung would pass ``maximum_spp``; then at
+    two rungs ran) and, given ``rung_error``, its error is at most
+    ``target_error`` (so that PT's time to a method's quality is read within
+    the ladder, not bounded), or the next rung would pass ``maximum_spp``; then at
     s0 / 2, s0 / 4, ... down to 1 spp while its smallest rung is slower than
     the fastest method: nothing is extrapolated at either end
     (:class:`~sparselt.experiments.equal_time.BaselineFit` fits over the
@@ -56,6 +60,10 @@ def ladder_search(run_rung, others, *, smallest_budget, maximum_spp, start=None)
         The cap (:attr:`ComparisonConfig.pt_ladder_max_spp`).
     start : sequence of int, optional
         A ladder already run: the search resumes from its last rung.
+    rung_error : callable, optional
+        ``rung_error(spp) -> float``: PT's mean relMSE at a rung already run.
+    target_error : float, optional
+        The smallest mean relMSE of every other method's cells.
 
     Returns
     -------
@@ -73,7 +81,8 @@ def ladder_search(run_rung, others, *, smallest_budget, maximum_spp, start=None)
         reached = float(np.median(run_rung(spp)))
         if spp not in steps:
             steps.append(spp)
-        if reached > target and len(steps) >= 2:
+        if reached > target and len(steps) >= 2 and (
+                rung_error is None or target_error is None or not rung_error(spp) > target_error):
             break
         if 2 * spp > maximum_spp:
             capped = True
@@ -166,7 +175,7 @@ class CellRunner:
         ladder = None
         if any(method.label != baseline.label for method in methods):
             ladder = self._ladder(lambda spp: [self._repeat(baseline, spp, seed, 1) for seed in config.seeds],
-                                  self._other_times(baseline, plan))
+                                  self._other_times(baseline, plan), baseline=baseline)
             plan += [(baseline, spp, seed) for spp in ladder["spps"] for seed in config.seeds
                      if spp not in config.spps or baseline.label not in config.methods]
         for round_number in range(2, config.timing_repeats + 1):
@@ -181,13 +190,35 @@ class CellRunner:
             # The medians may have moved from round 1's times: extend the ladder (each new rung with all its
             # repeats) until it covers them again.
             ladder = self._ladder(lambda spp: [self._finished(baseline, spp, seed) for seed in config.seeds],
-                                  self._other_times(baseline, plan), start=ladder["spps"])
+                                  self._other_times(baseline, plan), start=ladder["spps"], baseline=baseline)
         return RunOutcome(ladder=ladder, warm_up_seconds=dict(self.warm_up_seconds), method_seconds=self.seconds,
                           metric_seconds=self.metric_seconds)
 
-    def _ladder(self, run_rung, others, start=None):
+    def _ladder(self, run_rung, others, start=None, *, baseline):
         return ladder_search(run_rung, others, smallest_budget=min(self.config.spps),
-                             maximum_spp=self.config.pt_ladder_max_spp, start=start)
+                             maximum_spp=self.config.pt_ladder_max_spp, start=start,
+                             rung_error=lambda spp: self._mean_error(baseline.label, spp),
+                             target_error=self._smallest_error(baseline.label))
+
+    def _first_rows(self):
+        """Every cell's row as its first repeat measured it (finished cells' rows first)."""
+        rows = {name: cell["row"] for name, cell in self.folder.cells().items()}
+        for name in self.folder.repeat_names():
+            rows.setdefault(name, self.folder.repeats(name)["row"])
+        return rows.values()
+
+    def _mean_error(self, row, spp):
+        """PT's mean relMSE (untrimmed: it falls with spp on every scene) over the seeds run at ``spp``."""
+        values = [entry["relmse"] for entry in self._first_rows() if entry["method"] == row and entry["spp"] == spp]
+        return float(np.mean(values)) if values else math.inf
+
+    def _smallest_error(self, baseline):
+        """The smallest mean relMSE over seeds among the other rows' cells of this comparison (None without any)."""
+        groups = {}
+        for entry in self._first_rows():
+            if entry["method"] != baseline and entry["method"] in self.rows_so_far:
+                groups.setdefault((entry["method"], entry["spp"]), []).append(entry["relmse"])
+        return min((float(np.mean(values)) for values in groups.values()), default=None)
 
     def _other_times(self, baseline, plan):
         """The times of every other row's cell: this run's plan and those an earlier run of the folder

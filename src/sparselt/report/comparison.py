@@ -218,10 +218,13 @@ def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
                 "ratio [95%]", "verdict"] + [f"{METRIC_NAMES[metric]} ratio, verdict" for metric in others]
                + ["FLIP ratio, verdict", "SSIM ratio [95%]", "speed-up at equal quality [95%]", "outlier share",
                   "biased pixels"])
+    fallback = headline == "relmse" and any(record.get("relmse_trimmed") not in ("", None) for record in records)
     return Table(
         caption="Equal-time quality against path tracing",
         columns=columns, kinds=[""] * 2 + ["ours"] * (len(columns) - 2), rows=table_rows, label_header="method",
-        notes=[f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). The "
+        notes=(["The untrimmed relMSE decides here: PT's trimmed relMSE does not fall as c/spp + floor over its "
+                "ladder (relative residual above 50%), as where trimming discards the few pixels that found a rare "
+                "light."] if fallback else []) + [f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). The "
                f"verdict and the speed-up use {METRIC_NAMES[headline]}; relMSE's epsilon = {epsilon}. PT's value "
                f"at a time comes from its fits (time = a + b spp; relMSE = c/spp + floor per seed) over its automatic "
                f"spp ladder. Ratios: the method's mean over seeds over PT's mean at the same times, both less the "
@@ -271,13 +274,16 @@ def _speedup_text(record):
     if not isinstance(value, float):
         return "-"
     bound = record.get("speedup_bound", "")
-    if bound:
-        side = "ends" if bound == ">" else "starts"
-        return f"{bound} {_number(value)}x (PT's ladder {side} at {record.get('pt_ladder_spp', '?')} spp)"
+    text = f"{bound} {_number(value)}x" if bound else f"{_number(value)}x"
     low, high = record.get("speedup_ci_low", ""), record.get("speedup_ci_high", "")
     if isinstance(low, float) and isinstance(high, float):
-        return f"{_number(value)}x [{_number(low)}, {_number(high)}]"
-    return f"{_number(value)}x"
+        low_text = (record.get("speedup_ci_low_bound") or "") + _number(low)
+        high_text = (record.get("speedup_ci_high_bound") or "") + _number(high)
+        text += f" [{low_text}, {high_text}]"
+    if bound:
+        side = "ends" if bound == ">" else "starts"
+        text += f" (PT's ladder {side} at {record.get('pt_ladder_spp', '?')} spp)"
+    return text
 
 
 def guided_budgets(rows, methods):

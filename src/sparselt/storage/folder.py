@@ -462,6 +462,14 @@ class ExperimentFolder:
         path = self.path_of(f"{REPEATS}/{name}.json")
         return read_json(path) if os.path.isfile(path) else None
 
+    def repeat_names(self):
+        """The names of the cells with repeats recorded (:meth:`repeats`), sorted."""
+        folder = self.path_of(REPEATS)
+        if not os.path.isdir(folder):
+            return []
+        return [name[:-5] for name in sorted(os.listdir(folder))
+                if name.endswith(".json") and not name.startswith(TEMPORARY_PREFIX)]
+
     def record_repeat(self, name, record):
         """Record the repeats of cell ``name`` so far (see :meth:`repeats`)."""
         return self.write_json(f"{REPEATS}/{name}.json", record)
