@@ -524,7 +524,8 @@ class ComparisonExperiment(Experiment):
         minutes = config.reference_minutes
         if minutes is None and config.reference_spp == AUTO:
             minutes = AUTO_DEFAULT_MINUTES
-        self.reference_deadline = None if minutes is None else time.monotonic() + 60.0 * minutes
+        # The minutes are the reference's own rendering time (the cells' time between its renders is not counted).
+        self.reference_seconds_left = None if minutes is None else 60.0 * minutes
         spp = AUTO_INITIAL_SPP if config.reference_spp == AUTO else config.reference_spp
         measure = self._reference(loaded, spp, progress)
         self.seconds["reference"] = time.perf_counter() - reference_start
@@ -564,10 +565,14 @@ class ComparisonExperiment(Experiment):
         from ..rendering.baseline import cached_reference
 
         config = self.config
+        started = time.monotonic()
+        deadline = None if self.reference_seconds_left is None else started + max(self.reference_seconds_left, 0.0)
         image, record = cached_reference(loaded, config.kind, spp=spp, max_depth=config.max_depth,
                                          seed=config.reference_seed, progress=progress,
                                          cache_directory=self.cache_directory, scheduler=self.scheduler,
-                                         setup=self.setup, deadline=self.reference_deadline, epsilon=RELMSE_EPSILON)
+                                         setup=self.setup, deadline=deadline, epsilon=RELMSE_EPSILON)
+        if self.reference_seconds_left is not None:
+            self.reference_seconds_left -= time.monotonic() - started
         if not np.any(image > 0):
             raise ValueError(f"the reference of scene {self.setup.spec.name!r} for kind {config.kind!r} at max depth "
                              f"{config.max_depth} is black (every pixel 0 after {record['spp']} spp): no light "
@@ -586,7 +591,7 @@ class ComparisonExperiment(Experiment):
             smallest = smallest_judged_error(folder.cells().values(), configuration, self.measure.floor)
             floor = self.measure.floor
             target = None if smallest is None else AUTO_FLOOR_SHARE * smallest
-            out_of_time = self.reference_deadline is not None and time.monotonic() >= self.reference_deadline
+            out_of_time = self.reference_seconds_left is not None and self.reference_seconds_left <= 0
             if floor is None or target is None or floor <= target or out_of_time:
                 break
             needed = reference_spp_for_floor(floor, self.measure.spp, target)
