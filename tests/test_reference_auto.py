@@ -67,3 +67,26 @@ def test_a_bad_reference_budget_is_refused_before_anything_renders(tmp_path, cap
     except SystemExit as exit:  # argparse's own refusal of a value its type does not take
         code = exit.code
     assert code == 2 and message in capsys.readouterr().err and not out.exists()
+
+
+def test_the_reference_minutes_are_its_own_rendering_time_not_the_cells(tmp_path, monkeypatch):
+    """3 seconds of reference rendering (a 24x24 pass takes milliseconds) are enough although the cells take
+    longer (here made 4 s longer): the minutes are spent by the reference's passes only (they once counted from
+    its start, and an auto reference after a long run of cells stopped before adding a pass)."""
+    import time
+
+    from sparselt.experiments.comparison_cells import CellRunner
+
+    run_all = CellRunner.run_all
+
+    def slow_cells(self, *arguments, **keywords):
+        outcome = run_all(self, *arguments, **keywords)
+        time.sleep(4.0)
+        return outcome
+
+    monkeypatch.setattr(CellRunner, "run_all", slow_cells)
+    config = ComparisonConfig(**dict(NOISY, reference_spp="auto", reference_minutes=0.05))
+    compare(config, tmp_path / "run", progress=False, cache_directory=str(tmp_path / "cache"))
+    record = json.loads((tmp_path / "run" / "compare.json").read_text())
+    assert record["reference"]["seconds"] < 0.05 * 60 + 1.0
+    assert record["reference_target"]["met"] is True and record["reference"]["spp"] > 1024
