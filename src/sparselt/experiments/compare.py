@@ -548,6 +548,7 @@ class ComparisonExperiment(Experiment):
             reference_start = time.perf_counter()
             record["reference_target"] = self._converge(folder, loaded, record["config"], progress)
             self.seconds["reference"] += time.perf_counter() - reference_start
+            folder.write_image(f"{IMAGES}/reference", self.measure.image, exposure=exposure)  # the longer one
         record["reference"] = self.measure.summary()
         record["reference"]["cells_measured_again"] = remeasured + record.get("reference_target", {}).get(
             "cells_measured_again", 0)

@@ -199,6 +199,8 @@ def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
     """
     baseline = baseline_of(methods)
     records = [record for record in summary if record["method"] != baseline]
+    baseline_bias = {record["spp"]: record.get("bias_fraction", "") for record in summary
+                     if record["method"] == baseline}
     headline = records[0].get("headline_metric") or "relmse" if records else "relmse"
     others = [metric for metric in METRIC_NAMES if metric != headline
               and any(record.get(metric) not in ("", None) for record in records)]
@@ -212,12 +214,12 @@ def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
         for metric in others:
             cells.append(_ratio_and_verdict(record, metric))
         cells += [_ratio_and_verdict(record, "flip"), _with_interval(record, "ssim_ratio"), _speedup_text(record),
-                  _outlier_text(record), _number(record.get("bias_fraction", ""), 2)]
+                  _outlier_text(record), _bias_text(record, baseline_bias.get(record["spp"], ""))]
         table_rows.append((record["method"], cells))
     columns = (["spp", "seeds", "seconds (min-max)", f"{METRIC_NAMES[headline]} [95%]", "PT same time",
                 "ratio [95%]", "verdict"] + [f"{METRIC_NAMES[metric]} ratio, verdict" for metric in others]
                + ["FLIP ratio, verdict", "SSIM ratio [95%]", "speed-up at equal quality [95%]", "outlier share",
-                  "biased pixels"])
+                  "biased pixels (PT's)"])
     fallback = headline == "relmse" and any(record.get("relmse_trimmed") not in ("", None) for record in records)
     return Table(
         caption="Equal-time quality against path tracing",
@@ -237,7 +239,8 @@ def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
                f"fits; '>' a lower bound where PT would need more spp than its ladder ran. Outlier share: the share "
                f"of relMSE in the top 0.1% of pixels (marked '!' above 0.5: a few pixels decide the untrimmed "
                f"metric). Biased pixels: the fraction Welch's t-test against the reference finds biased "
-               f"(Benjamini-Hochberg at 1%)."])
+               f"(Benjamini-Hochberg at 1%), PT's at the same spp beside it: with few seeds the test also flags "
+               f"some of an unbiased PT's pixels (skewed pixel means at low spp), so read the two together."])
 
 
 def _verdict_text(record):
@@ -258,6 +261,13 @@ def _ratio_and_verdict(record, metric):
     if not isinstance(record.get(key), float):
         return verdict
     return f"{_with_interval(record, key)} {verdict}"
+
+
+def _bias_text(record, baseline):
+    fraction = record.get("bias_fraction", "")
+    if not isinstance(fraction, float):
+        return "-"
+    return f"{_number(fraction, 2)} ({_number(baseline, 2)})" if isinstance(baseline, float) else _number(fraction, 2)
 
 
 def _outlier_text(record):
