@@ -40,7 +40,6 @@ holding files sparselt did not write is always refused.
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
 from dataclasses import asdict, dataclass, field
 from functools import cached_property
@@ -58,7 +57,6 @@ from ..rendering.baseline import (
     METHOD_SEED_LIMIT,
     REFERENCE_SEED_LIMIT,
     check_wavefront,
-    reference_spp_for_floor,
 )
 from ..rendering.layout import KINDS
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
@@ -67,30 +65,19 @@ from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS, in_compariso
 from ..results import COMPARISON_KIND  # the folder load_comparison reads
 from ..results import CONFIGURATION_FILE as CONFIG_FILE
 from .comparison_cells import IMAGES, CellRunner, cell_name
+from .comparison_reference import AUTO, ComparisonReference, remeasure_cells
 from .equal_time import (
     bias_record,
-    fit_baseline,
     fit_record,
-    headline_metric,
     judge,
-    row_floor,
 )
 from .protocol import Experiment, run_experiment
-from .quality import RELMSE_EPSILON, caustic_mask, quality, reference_floor_map
+from .quality import RELMSE_EPSILON, caustic_mask
 
 # What makes two comparisons the same: everything but the lists a rerun may extend and the reference's budget
 # (a rerun with a longer reference measures every cell again against it).
 EXTENSIBLE = ("methods", "spps", "seeds")
 REFERENCE_BUDGET = ("reference_spp", "reference_minutes")
-#: ``--reference-spp auto``: start from this many spp, then add passes until the floor is at most
-#: :data:`AUTO_FLOOR_SHARE` of the smallest debiased headline relMSE among the cells it judges.
-AUTO = "auto"
-AUTO_INITIAL_SPP = 1024
-AUTO_FLOOR_SHARE = 0.1
-#: ``--reference-minutes`` when ``--reference-spp auto`` is given without it.
-AUTO_DEFAULT_MINUTES = 10.0
-#: At most this many rounds of adding passes and measuring again (each predicts the spp it needs from the 1/spp law).
-AUTO_ROUNDS = 4
 #: Bounds checked before any work: a reference beyond them would run for days (2-core machine, ~5 M samples/s).
 MAXIMUM_REFERENCE_SPP = 2**24
 MAXIMUM_REFERENCE_SAMPLES = 2**40
@@ -521,34 +508,29 @@ class ComparisonExperiment(Experiment):
         folder.write_json(CONFIG_FILE, record)
 
         reference_start = time.perf_counter()
-        minutes = config.reference_minutes
-        if minutes is None and config.reference_spp == AUTO:
-            minutes = AUTO_DEFAULT_MINUTES
-        # The minutes are the reference's own rendering time (the cells' time between its renders is not counted).
-        self.reference_seconds_left = None if minutes is None else 60.0 * minutes
-        spp = AUTO_INITIAL_SPP if config.reference_spp == AUTO else config.reference_spp
-        measure = self._reference(loaded, spp, progress)
+        reference = ComparisonReference(config, self.setup, cache_directory=self.cache_directory,
+                                        scheduler=self.scheduler)
+        measure = reference.start(loaded, progress)
         self.seconds["reference"] = time.perf_counter() - reference_start
-        reference = measure.image
-        exposure = reference_exposure(reference)
-        folder.write_image(f"{IMAGES}/reference", reference, exposure=exposure)
+        exposure = reference_exposure(measure.image)
+        folder.write_image(f"{IMAGES}/reference", measure.image, exposure=exposure)
         if config.caustic_mask:
-            mask = caustic_mask(loaded, reference, spp=min(measure.spp, 1024), max_depth=config.max_depth,
+            mask = caustic_mask(loaded, measure.image, spp=min(measure.spp, 1024), max_depth=config.max_depth,
                                 seed=config.reference_seed)
             folder.write_png(f"{IMAGES}/caustic_mask.png", np.repeat(mask[..., None], 3, axis=2).astype(np.float32))
             record["caustic_mask_pixels"] = int(mask.sum())
-            measure = dataclasses.replace(measure, mask=mask)
-        self.measure = measure
+            reference.measure = measure = dataclasses.replace(measure, mask=mask)
 
-        runner = CellRunner(folder, state.context, config, lambda image: self.measure(image), exposure, progress,
+        runner = CellRunner(folder, state.context, config, lambda image: reference.measure(image), exposure, progress,
                             rows_so_far=tuple(record["config"]["methods"]))
         outcome = runner.run_all(list(methods.values()), methods[baseline_name()])
-        remeasured = remeasure_cells(folder, self.measure)
+        remeasured = remeasure_cells(folder, reference.measure)
         if config.reference_spp == AUTO:
             reference_start = time.perf_counter()
-            record["reference_target"] = self._converge(folder, loaded, record["config"], progress)
+            record["reference_target"] = reference.converge(folder, loaded, record["config"], progress)
             self.seconds["reference"] += time.perf_counter() - reference_start
-            folder.write_image(f"{IMAGES}/reference", self.measure.image, exposure=exposure)  # the longer one
+            folder.write_image(f"{IMAGES}/reference", reference.measure.image, exposure=exposure)  # the longer one
+        self.measure = reference.measure
         record["reference"] = self.measure.summary()
         record["reference"]["cells_measured_again"] = remeasured + record.get("reference_target", {}).get(
             "cells_measured_again", 0)
@@ -559,59 +541,6 @@ class ComparisonExperiment(Experiment):
         self.seconds["methods"] = outcome.method_seconds
         self.seconds["metrics"] = outcome.metric_seconds
         return record
-
-    def _reference(self, loaded, spp, progress):
-        """The reference at ``spp`` (its cached passes, the missing ones rendered until the deadline) as a
-        :class:`ReferenceMeasure`; a black one is refused."""
-        from ..rendering.baseline import cached_reference
-
-        config = self.config
-        started = time.monotonic()
-        deadline = None if self.reference_seconds_left is None else started + max(self.reference_seconds_left, 0.0)
-        image, record = cached_reference(loaded, config.kind, spp=spp, max_depth=config.max_depth,
-                                         seed=config.reference_seed, progress=progress,
-                                         cache_directory=self.cache_directory, scheduler=self.scheduler,
-                                         setup=self.setup, deadline=deadline, epsilon=RELMSE_EPSILON)
-        if self.reference_seconds_left is not None:
-            self.reference_seconds_left -= time.monotonic() - started
-        if not np.any(image > 0):
-            raise ValueError(f"the reference of scene {self.setup.spec.name!r} for kind {config.kind!r} at max depth "
-                             f"{config.max_depth} is black (every pixel 0 after {record['spp']} spp): no light "
-                             "reaches the camera along the paths this kind counts, so no image can be compared; "
-                             "check the scene's emitters, the kind, or raise --max-depth")
-        mask = getattr(self, "measure", None)
-        return ReferenceMeasure(image=image, floor_map=reference_floor_map(image, record["variance"]),
-                                spp=int(record["spp"]), record=record, mask=None if mask is None else mask.mask)
-
-    def _converge(self, folder, loaded, configuration, progress):
-        """``--reference-spp auto``: add passes until the floor is at most :data:`AUTO_FLOOR_SHARE` of the smallest
-        debiased headline relMSE among the judged cells, or the minutes run out; every cell measured again
-        against each longer reference. Returns ``compare.json``'s ``reference_target``."""
-        measured_again = 0
-        for _ in range(AUTO_ROUNDS):
-            smallest = smallest_judged_error(folder.cells().values(), configuration, self.measure.floor)
-            floor = self.measure.floor
-            target = None if smallest is None else AUTO_FLOOR_SHARE * smallest
-            out_of_time = self.reference_seconds_left is not None and self.reference_seconds_left <= 0
-            if floor is None or target is None or floor <= target or out_of_time:
-                break
-            needed = reference_spp_for_floor(floor, self.measure.spp, target)
-            if progress:
-                print(f"compare: reference floor {floor:.3g} is above {AUTO_FLOOR_SHARE:g} x the smallest debiased "
-                      f"error {smallest:.3g}: adding passes up to {needed} spp", file=sys.stderr)
-            longer = self._reference(loaded, needed, progress)
-            if longer.spp <= self.measure.spp:
-                break
-            self.measure = longer
-            measured_again += remeasure_cells(folder, self.measure)
-        smallest = smallest_judged_error(folder.cells().values(), configuration, self.measure.floor)
-        floor = self.measure.floor
-        target = None if smallest is None else AUTO_FLOOR_SHARE * smallest
-        return {"share": AUTO_FLOOR_SHARE, "smallest_debiased_error": smallest, "target_floor": target,
-                "floor": floor, "spp": self.measure.spp,
-                "met": bool(floor is not None and target is not None and floor <= target),
-                "minutes": (self.config.reference_minutes if self.config.reference_minutes is not None
-                            else AUTO_DEFAULT_MINUTES), "cells_measured_again": measured_again}
 
     def report(self, folder, state, record):
         """Equal-time columns and summary, every table and figure, and ``compare.json`` completed."""
@@ -661,90 +590,3 @@ def method_record(method):
 def _load_rows(folder, methods):
     """Every finished cell in the folder: this run's and those of earlier runs of the same comparison."""
     return in_comparison_order([record["row"] for record in folder.cells().values()], methods)
-
-
-@dataclass(frozen=True)
-class ReferenceMeasure:
-    """The reference a comparison measures against, and the measurement of an image against it.
-
-    Attributes
-    ----------
-    image : ndarray, shape (height, width, 3)
-    floor_map : ndarray or None
-        The reference's own noise in each pixel's relMSE term
-        (:func:`~sparselt.experiments.quality.reference_floor_map`); None for a one-pass reference.
-    spp : int
-        The samples per pixel it holds (whole passes).
-    record : dict
-        :func:`~sparselt.rendering.baseline.cached_reference`'s record.
-    mask : ndarray of bool or None
-        The caustic mask (``relmse_caustic``).
-    """
-
-    image: object
-    floor_map: object
-    spp: int
-    record: dict
-    mask: object = None
-
-    def __call__(self, image):
-        """The quality columns of ``image`` (:func:`~sparselt.experiments.quality.quality`) and ``reference_spp``."""
-        return dict(quality(image, self.image, self.mask, self.floor_map), reference_spp=self.spp)
-
-    @property
-    def floor(self):
-        """The reference's relMSE floor (the mean of its floor map), None when unknown."""
-        return None if self.floor_map is None else float(np.mean(self.floor_map))
-
-    def bias_test_variance(self):
-        """The per-pixel variance of the reference's mean and its degrees of freedom (passes - 1) for the bias
-        test; ``(None, None)``, an exact reference, with one pass."""
-        passes, variance = self.record["passes"], self.record["variance"]
-        if passes < 2 or not np.all(np.isfinite(variance)):
-            return None, None
-        return variance, passes - 1
-
-    def summary(self):
-        """``compare.json``'s ``reference`` record: the cache key, spp, passes, time, machines and floor."""
-        keys = ("key", "spp", "requested_spp", "passes", "seconds", "seconds_this_run", "machines", "cached", "path")
-        return dict({key: self.record[key] for key in keys if key in self.record}, relmse_floor=self.floor)
-
-
-#: Columns of earlier protocols that a measurement against a new reference replaces.
-STALE_COLUMNS = ("relmse_debiased", "reference_limited")
-
-
-def remeasure_cells(folder, measure):
-    """Measure again, from their images, the finished cells measured against another reference; their
-    records rewritten. Returns how many."""
-    count = 0
-    for name, cell in folder.cells().items():
-        row = cell["row"]
-        if row.get("reference_spp") == measure.spp and "relmse_trimmed" in row:
-            continue
-        image = np.load(folder.path_of(f"{IMAGES}/{name}.npy"))
-        row = {key: value for key, value in row.items() if key not in STALE_COLUMNS}
-        row.update(measure(image))
-        folder.record_cell(name, dict(cell, row=row))
-        count += 1
-    return count
-
-
-def smallest_judged_error(cells, configuration, floor):
-    """The smallest debiased headline relMSE (mean over seeds) among the cells a comparison judges: every
-    row's at the run's budgets (PT's ladder rungs beyond them excluded); None without such cells.
-
-    A cell at or below the reference's noise counts as half the floor (the next round measures it again).
-    """
-    every = [dict(cell["row"]) for cell in cells]
-    rows = [row for row in every if row["spp"] in configuration["spps"]
-            and row["method"] in configuration["methods"] + [baseline_name()]]
-    if not rows:
-        return None
-    metric = headline_metric(rows, fit_baseline(every, baseline_name()))
-    groups = {}
-    for row in rows:
-        groups.setdefault((row["method"], row["spp"]), []).append(row[metric] - row_floor(row, metric))
-    means = [float(np.mean(values)) for values in groups.values()]
-    half = 0.5 * floor if floor else 0.0
-    return min(max(value, half) for value in means) if means else None
