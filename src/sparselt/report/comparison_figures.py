@@ -44,7 +44,8 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
     summary : list of dict, optional
         The equal-time protocol's records per (method, spp): each point is a
         (method, spp) at its median time, with min-max time bars and the
-        95% interval of its mean relMSE over seeds.
+        95% interval of its mean over seeds of the verdicts' metric
+        (``headline_metric``: the trimmed relMSE, or relMSE).
     fit : dict, optional
         PT's fit as ``compare.json`` holds it (``intercept_seconds``,
         ``seconds_per_spp``, ``relmse_per_seed``, ``spp_range``): drawn as
@@ -56,11 +57,15 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
     """
     plot = pyplot()
     figure, (left, right) = plot.subplots(1, 2, figsize=(12.5, 4.4))
+    # The verdicts' metric (the trimmed relMSE, or relMSE where the protocol falls back to it) is the one drawn.
+    metric = next((record.get("headline_metric") for record in summary or [] if record.get("headline_metric")),
+                  "relmse")
+    name = "trimmed relMSE (top 0.1%)" if metric == "relmse_trimmed" else "relMSE"
     for method in methods_in_order(rows):
         records = [record for record in summary or [] if record["method"] == method]
         if not records:
             method_rows = [row for row in rows if row["method"] == method]
-            for axis, quantity in ((left, "ssim"), (right, "relmse")):
+            for axis, quantity in ((left, "ssim"), (right, metric)):
                 curve = mean_curve(method_rows, quantity)
                 axis.plot([point[0] for point in curve], [point[1] for point in curve], marker="o", label=method)
             continue
@@ -71,23 +76,24 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
         line, = left.plot(seconds, [record["ssim"] for record in records], marker="o", label=method)
         left.errorbar(seconds, [record["ssim"] for record in records], xerr=bars, fmt="none", ecolor=line.get_color(),
                       alpha=0.6)
-        relmse = np.array([record["relmse"] for record in records])
-        low = np.array([record["relmse_ci_low"] for record in records], dtype=float)
-        high = np.array([record["relmse_ci_high"] for record in records], dtype=float)
+        relmse = np.array([record[metric] for record in records])
+        low = np.array([record[f"{metric}_ci_low"] for record in records], dtype=float)
+        high = np.array([record[f"{metric}_ci_high"] for record in records], dtype=float)
         yerr = np.where(np.isfinite(low), [relmse - np.maximum(low, relmse * 1e-3), high - relmse], 0.0)
         right.errorbar(seconds, relmse, xerr=bars, yerr=yerr, marker="o", color=line.get_color(), label=method,
                        capsize=2)
-    if fit:
+    if fit and fit.get(f"{metric}_per_seed"):
         spps = np.geomspace(fit["spp_range"][0], fit["spp_range"][1], 64)
-        c = np.mean([value["c"] for value in fit["relmse_per_seed"].values()]) if fit["relmse_per_seed"] else None
+        seeds = fit[f"{metric}_per_seed"]
+        c = np.mean([value["c"] for value in seeds.values()])
         if c is not None:
-            floor = np.mean([value["floor"] for value in fit["relmse_per_seed"].values()])
+            floor = np.mean([value["floor"] for value in seeds.values()])
             right.plot(fit["intercept_seconds"] + fit["seconds_per_spp"] * spps, c / spps + floor, "k--", lw=1,
                        label=f"PT fit: {c:.3g}/spp + {floor:.2g}")
     left.set(xscale="log", xlabel="seconds (median of repeats, kernels warm)", ylabel="SSIM",
              title=f"{scene}: SSIM vs time")
     right.set(xscale="log", yscale="log", xlabel="seconds (median of repeats, kernels warm)",
-              ylabel=f"relMSE (epsilon = {epsilon:g}), 95% over seeds", title=f"{scene}: relMSE vs time")
+              ylabel=f"{name}, eps {epsilon:g}, 95% over seeds", title=f"{scene}: {name} vs time")
     for axis in (left, right):
         axis.grid(True, which="both", alpha=0.3)
     handles, labels = right.get_legend_handles_labels()
