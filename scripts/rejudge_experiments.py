@@ -19,7 +19,7 @@ import json
 import sys
 from pathlib import Path
 
-from sparselt.experiments.equal_time import fit_record, judge
+from sparselt.experiments.equal_time import DERIVED_ROW_COLUMNS, fit_record, judge
 from sparselt.provenance import write_json
 from sparselt.report.comparison import equal_time_table, results_csv, summary_csv
 from sparselt.report.comparison_rows import COLUMN_ORDER
@@ -27,16 +27,13 @@ from sparselt.report.results import read_records_csv
 from sparselt.results import reference_spp
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
-#: The rows' columns the protocol derives (recomputed, never read back).
-DERIVED = ("relmse_pt_equal_time", "relmse_trimmed_pt_equal_time", "ssim_pt_equal_time", "flip_pt_equal_time",
-           "relmse_ratio", "relmse_trimmed_ratio", "verdict", "speedup_equal_quality", "speedup_bound",
-           "outlier_dominated", "bias_fraction")
+
 
 
 def rejudge(folder):
     """``(files {name: text}, compare.json record, old summary, new summary)`` of one comparison folder."""
     record = json.loads((folder / "compare.json").read_text())
-    rows = [{key: value for key, value in row.items() if key not in DERIVED}
+    rows = [{key: value for key, value in row.items() if key not in DERIVED_ROW_COLUMNS}
             for row in read_records_csv(folder / "results.csv")]
     fit, summary = judge(rows, baseline="pt", reference_spp=reference_spp(record), bias=record.get("bias"))
     record["pt_fit"] = fit_record(fit)

@@ -45,7 +45,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from sparselt.experiments.equal_time import judge
+from sparselt.experiments.equal_time import DERIVED_ROW_COLUMNS, judge  # stripped, recomputed, compared
 from sparselt.experiments.integration_report import (
     IntegrationMeasurement,
     complexity_table,
@@ -58,10 +58,6 @@ from sparselt.results import reference_spp
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
 #: Relative tolerance for numbers recomputed from ``results.csv``'s six printed digits (module docstring).
 RELATIVE = 1e-3
-#: The rows' columns that the equal-time protocol writes: removed before recomputing, compared after.
-DERIVED_ROW_COLUMNS = ("relmse_pt_equal_time", "relmse_trimmed_pt_equal_time", "ssim_pt_equal_time",
-                       "flip_pt_equal_time", "relmse_ratio", "relmse_trimmed_ratio", "verdict",
-                       "speedup_equal_quality", "speedup_bound", "outlier_dominated", "bias_fraction")
 INTEGER_COLUMNS = {"spp", "seed", "seeds", "path_samples", "timing_repeats", "reference_spp", "reference_spp_needed",
                    "pt_ladder_spp"}
 BOOLEAN_COLUMNS = {"timing_noisy", "reference_limited", "outlier_dominated", "verdicts_disagree"}

@@ -425,6 +425,11 @@ SUMMARY_COLUMNS = (("method", "spp", "seeds", "seconds_total", "seconds_total_mi
 #: What :func:`summarize` writes into every row of a (method, spp) cell (``results.csv``'s derived columns); a
 #: row's ``outlier_dominated`` is then its own (its ``outlier_share`` above 0.5).
 ROW_SUMMARY_COLUMNS = ("verdict", "speedup_equal_quality", "speedup_bound", "outlier_dominated")
+#: Every column :func:`judge` writes into the rows (never read back: a re-judged folder recomputes them).
+DERIVED_ROW_COLUMNS = (tuple(f"{metric}_pt_equal_time" for metric in RELMSE_METRICS)
+                       + ("ssim_pt_equal_time", "flip_pt_equal_time")
+                       + tuple(f"{metric}_ratio" for metric in RELMSE_METRICS) + ROW_SUMMARY_COLUMNS
+                       + ("bias_fraction",))
 
 
 def summarize(rows, fit, *, baseline="pt", reference_spp=None):
@@ -723,7 +728,7 @@ def add_bias_fractions(summary, record, rows=()):
 
 __all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "FIT_RESIDUAL_LIMIT", "HEADLINE_METRIC", "NOISY_TIMING_RATIO",
            "OUTLIER_DOMINATED_SHARE", "REFERENCE_LIMITED_SHARE", "RELMSE_METRICS", "ROW_SUMMARY_COLUMNS",
-           "SUMMARY_COLUMNS", "VERDICTS", "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record",
+           "SUMMARY_COLUMNS", "VERDICTS", "DERIVED_ROW_COLUMNS", "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record",
            "equal_quality_speedup", "fit_baseline", "fit_record", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
            "mean_interval", "ratio_interval", "row_floor", "summarize",
            "timing_uncertainty", "verdict"]

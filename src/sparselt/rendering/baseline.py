@@ -28,7 +28,7 @@ import numpy as np
 
 from ..cell_statistics import variance_from_sums
 from ..checks import check_integer, check_positive_finite
-from ..digest import bytes_digest, digest
+from ..digest import bytes_digest, digest, file_digest
 from ..measurement import progress_bar
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
 from .identity import scene_identity
@@ -374,7 +374,7 @@ def _write_outputs(folder, image, variance, summary):
         written = read_json(record_path)
         same = all(written.get(name) == summary[name] for name in ("key", "pass_sha256", "image_sha256",
                                                                    "variance_sha256"))
-        same = same and all(_file_digest(path) == summary[name] for path, name in (
+        same = same and all(file_digest(path) == summary[name] for path, name in (
             (image_path, "image_sha256"), (variance_path, "variance_sha256")))
     except (OSError, ValueError, AttributeError):
         same = False
@@ -387,11 +387,6 @@ def _write_outputs(folder, image, variance, summary):
         atomic_write_bytes(variance_path, variance_bytes.getvalue())
         write_json(record_path, dict(summary, provenance=environment_record()))
     return image_path
-
-
-def _file_digest(path):
-    with open(path, "rb") as handle:
-        return bytes_digest(handle.read())
 
 
 def reference_relmse_floor(reference, variance, *, epsilon):
