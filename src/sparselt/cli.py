@@ -320,6 +320,34 @@ def build_parser():
     _add_scene_options(compare)
     compare.set_defaults(handler=_compare)
 
+    suite = commands.add_parser(
+        "suite", help="every method over a suite of scenes, aggregated with intervals",
+        description="Run an equal-time comparison per scene of a suite (a TOML file, or the built-in standard "
+        "suite), and aggregate: suite.csv (every scene's summary), aggregate.csv (per method and budget the "
+        "geometric mean over scenes of the speed-up over PT and of the relMSE ratio, with 95%% bootstrap "
+        "intervals over scenes and seeds, verdict counts and the worst scene) and index.html with an "
+        "interactive image viewer per scene. A rerun resumes.")
+    suite.add_argument("file", nargs="?", default=None, help="a suite TOML file (see docs/suites.md)")
+    suite.add_argument("--suite", dest="builtin", choices=("standard",), default=None,
+                       help="the built-in suite instead of a file")
+    suite.add_argument("--scale", choices=("quick", "default", "paper"), default=None,
+                       help="the built-in suite's sizes: 128x128, 256x256 or 1024x576 (default: default)")
+    suite.add_argument("--scenes", type=_names, default=None,
+                       help="only these scenes of the built-in suite, comma separated")
+    suite.add_argument("--methods", type=_names, default=None,
+                       help="the built-in suite's methods instead of its scale's (each scene runs those that "
+                            "support its kind)")
+    suite.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="a Dask scheduler (tcp://host:8786) whose workers each hold one machine ('dask worker "
+                            "ADDRESS --resources machine=1 --nthreads N'): references render across the cluster, "
+                            "each scene's comparison on one machine")
+    suite.add_argument("--out", required=True, help="output folder (rerun to resume)")
+    suite.add_argument("--overwrite", action="store_true",
+                       help="replace a folder holding another run (only the files sparselt wrote there)")
+    suite.add_argument("--no-progress", action="store_true", help="hide progress output")
+    _add_plugin_option(suite)
+    suite.set_defaults(handler=_suite)
+
     table = commands.add_parser(
         "table61", help="the SFT on a rendered path space: Table 6.1 and Figures 6.1/6.2",
         description="Sparse Fourier Transform of a rendered path-space signal through the renderer as its oracle "
@@ -485,6 +513,27 @@ def _compare(arguments):
                      scheduler=arguments.scheduler)
     print(result.table())
     print(f"relMSE epsilon 0.01; harness overhead {100 * result.overhead_fraction:.1f}% of the run; wrote {arguments.out}")
+    return 0
+
+
+def _suite(arguments):
+    from .experiments.standard_suite import standard_suite
+    from .experiments.suite import run_suite
+    from .experiments.suite_config import read_suite
+
+    if (arguments.file is None) == (arguments.builtin is None):
+        raise ValueError("give a suite file or --suite standard (one of them)")
+    if arguments.file is not None and (arguments.scale or arguments.scenes or arguments.methods):
+        raise ValueError("--scale, --scenes and --methods choose the built-in suite's settings; a suite file "
+                         "states its own (edit the file)")
+    if arguments.file is not None:
+        config = read_suite(arguments.file)
+    else:
+        config = standard_suite(arguments.scale or "default", methods=arguments.methods, scenes=arguments.scenes)
+    result = run_suite(config, arguments.out, overwrite=arguments.overwrite, progress=not arguments.no_progress,
+                       scheduler=arguments.scheduler)
+    print(result.table())
+    print(f"wrote {arguments.out} in {result.seconds:.0f} s; open {os.path.join(os.path.abspath(arguments.out), 'index.html')}")
     return 0
 
 

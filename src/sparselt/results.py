@@ -91,7 +91,7 @@ def _comparison(folder):
     baseline = baseline_of(methods)
     config = record.get("config") or {}
     rows = in_comparison_order(rows, [baseline] + list(config.get("methods", [])))
-    _, summary = judge(rows, baseline=baseline, reference_spp=reference_spp(record), bias=record.get("bias"))
+    fit, summary = judge(rows, baseline=baseline, reference_spp=reference_spp(record), bias=record.get("bias"))
     floor = record.get("reference_relmse_floor")
     attributes = {
         "scene": config.get("scene", ""), "kind": config.get("kind", ""),
@@ -103,7 +103,29 @@ def _comparison(folder):
         "pt_fit": json.dumps(record.get("pt_fit"), sort_keys=True),
         "provenance": json.dumps(manifest["history"], sort_keys=True),
     }
-    return rows, summary, attributes
+    return rows, fit, summary, attributes
+
+
+def judged_comparison(folder):
+    """A comparison folder's cells judged by the equal-time protocol, as plain records (read only).
+
+    Returns
+    -------
+    rows : list of dict
+        Every finished cell's row with the equal-time columns.
+    fit : BaselineFit or None
+        PT's fits (:func:`sparselt.experiments.equal_time.judge`).
+    summary : list of dict
+        One record per (method, spp), ``summary.csv``'s.
+    attributes : dict
+        As :func:`load_comparison`'s Dataset attributes.
+
+    Raises
+    ------
+    ValueError
+        As :func:`load_comparison`.
+    """
+    return _comparison(folder)
 
 
 def load_comparison(folder):
@@ -147,7 +169,7 @@ def load_comparison(folder):
     Select the method with a dict: ``method=`` is xarray's own keyword argument
     of :meth:`xarray.Dataset.sel` (inexact matching), not the dimension.
     """
-    rows, _, attributes = _comparison(folder)
+    rows, _, _, attributes = _comparison(folder)
     return results_dataset(rows, attributes=attributes)
 
 
@@ -163,8 +185,8 @@ def load_summary(folder):
     written before it). Parameters,
     attributes and errors as :func:`load_comparison`.
     """
-    _, summary, attributes = _comparison(folder)
+    _, _, summary, attributes = _comparison(folder)
     return summary_dataset(summary, attributes=attributes)
 
 
-__all__ = ["COMPARISON_KIND", "CONFIGURATION_FILE", "load_comparison", "load_summary"]
+__all__ = ["COMPARISON_KIND", "CONFIGURATION_FILE", "judged_comparison", "load_comparison", "load_summary"]

@@ -68,6 +68,7 @@ class Section:
     verdicts: list = field(default_factory=list)
     links: list = field(default_factory=list)  # (text, relative path)
     seconds: float | None = None
+    markup: str = ""  # trusted HTML written by sparselt itself (an image viewer), after the figures
 
     @classmethod
     def from_record(cls, record):
@@ -131,7 +132,7 @@ def _contents(entries):
     return "<nav class=\"contents\"><p>Contents</p><ul>" + "".join(items) + "</ul></nav>"
 
 
-def page_html(folder, title, sections, provenance, *, note=""):
+def page_html(folder, title, sections, provenance, *, note="", head=""):
     """The report page as HTML text; every image and link path is relative to ``folder``, where the page goes.
 
     The page opens with a table of contents: one link per section (its
@@ -150,6 +151,8 @@ def page_html(folder, title, sections, provenance, *, note=""):
         :func:`~sparselt.provenance.environment_record` (versions, git revision, command).
     note : str, optional
         A paragraph under the title.
+    head : str, optional
+        Trusted markup for the page's ``<head>`` (the image viewer's styles and script).
 
     Raises
     ------
@@ -176,6 +179,8 @@ def page_html(folder, title, sections, provenance, *, note=""):
             figure_identifier = _unique(f"{identifier}-figure-{number}", used)
             entries.append((figure_identifier, figure.caption))
             body.append(_figure_html(figure, figure_identifier))
+        if section.markup:
+            body.append(section.markup)
         if section.links:
             items = []
             for text, target in section.links:
@@ -194,7 +199,7 @@ def page_html(folder, title, sections, provenance, *, note=""):
                 f"{_escape(provenance.get('platform', ''))}; created {_escape(provenance.get('created', ''))}; "
                 f"command <code>{_escape(' '.join(provenance.get('command') or []))}</code>; {_escape(versions)}.</p>")
     parts = ["<!DOCTYPE html>", "<html lang=\"en\"><head><meta charset=\"utf-8\">",
-             f"<title>{_escape(title)}</title><style>{STYLE}</style></head><body>",
+             f"<title>{_escape(title)}</title><style>{STYLE}</style>{head}</head><body>",
              f"<h1>{_escape(title)}</h1>"]
     if note:
         parts.append(f"<p>{_escape(note)}</p>")

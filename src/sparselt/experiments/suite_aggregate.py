@@ -1,0 +1,216 @@
+"""A suite's summary across scenes: geometric means of speed-ups and relMSE ratios with bootstrap intervals.
+
+Papers summarise a method over a suite of scenes by one number per budget.
+sparselt gives, per (method, spp), the geometric mean over scenes of the
+equal-quality speed-up over PT and of the relMSE ratio at equal time (the
+comparison's headline metric, :mod:`sparselt.experiments.equal_time`), each
+with a 95% interval from a two-level bootstrap: scenes resampled with
+replacement, then each chosen scene's seeds resampled with replacement
+(Davison & Hinkley 1997, 2.4, the hierarchical bootstrap), every resample's
+per-scene ratio mapped to a speed-up through that scene's own PT fits
+(:func:`~sparselt.experiments.equal_time.equal_quality_speedup`). The counts
+of verdicts, and the worst scene, sit beside them.
+
+Only cells with a ratio enter the means: a ``reference-limited`` cell
+(the reference's noise hides the method's error) or one without PT's value at
+its time is counted, not averaged. A speed-up read beyond PT's ladder is a
+bound; the aggregate says how many scenes' speed-ups are bounds.
+
+References
+----------
+Davison, A. C., & Hinkley, D. V. (1997). Bootstrap Methods and their
+Application. Cambridge University Press.
+Fleming, P. J., & Wallace, J. J. (1986). How not to lie with statistics: the
+correct way to summarize benchmark results. Communications of the ACM 29(3)
+(the geometric mean of ratios).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .equal_time import row_floor
+
+#: Bootstrap resamples of an aggregate's interval, and the generator's seed (recorded in ``suite.json``).
+RESAMPLES = 2000
+BOOTSTRAP_SEED = 20261204
+CONFIDENCE = 0.95
+NORMAL_QUANTILE = 1.959963984540054  # the standard normal's 97.5% quantile
+#: The verdicts with a ratio (they enter the geometric means).
+JUDGED = ("wins", "loses", "within noise", "one seed")
+AGGREGATE_COLUMNS = (
+    "method", "spp", "scenes", "scenes_judged", "speedup_geometric_mean", "speedup_ci_low", "speedup_ci_high",
+    "speedup_bounded_scenes", "speedup_bound", "relmse_ratio_geometric_mean", "relmse_ratio_ci_low",
+    "relmse_ratio_ci_high", "wins", "within_noise", "loses", "reference_limited", "other", "worst_scene",
+    "worst_speedup", "worst_verdict", "best_scene", "best_speedup")
+
+
+class SceneCell:
+    """One scene's (method, spp) cell, with what the bootstrap resamples: its seeds' debiased errors and its time.
+
+    Parameters
+    ----------
+    scene : str
+    record : dict
+        The cell's summary record (:func:`~sparselt.experiments.equal_time.summarize`).
+    rows : list of dict
+        Its seeds' rows, with the equal-time columns.
+    fit : BaselineFit or None
+        The scene's PT fits.
+    """
+
+    def __init__(self, scene, record, rows, fit):
+        self.scene, self.record, self.fit = scene, record, fit
+        self.verdict = record.get("verdict", "")
+        self.judged = self.verdict in JUDGED and fit is not None and isinstance(record.get("speedup_equal_quality"),
+                                                                                 float)
+        self.speedup = record.get("speedup_equal_quality") if self.judged else None
+        self.bound = record.get("speedup_bound", "") if self.judged else ""
+        if self.judged:
+            metric = record["headline_metric"]
+            self.metric = metric
+            floors = np.array([row_floor(row, metric) for row in rows])
+            self.numerator = np.array([row[metric] for row in rows], dtype=np.float64) - floors
+            self.denominator = np.array([row[f"{metric}_pt_equal_time"] for row in rows], dtype=np.float64) - floors
+            self.floor = row_floor(rows[0], metric)
+            self.seconds = float(record["seconds_total"])
+            timing = record.get("timing_uncertainty")
+            self.timing = float(timing) if isinstance(timing, (int, float)) and math.isfinite(timing) else 0.0
+            self.ratio = float(self.numerator.mean() / self.denominator.mean())
+
+    def draws(self, generator, shape):
+        """``(log ratio, log speed-up)`` arrays of ``shape``: each a resample of the seeds with replacement, at a
+        time drawn from the cell's timing uncertainty ``d`` (log-normal, 95% of it within ``1 +- d``, as the
+        comparison's own interval reads PT at ``t / (1 + d)`` and ``t (1 + d)``)."""
+        count = self.numerator.size
+        indices = generator.integers(0, count, shape + (count,))
+        # A resample's mean spreads by sqrt((n - 1) / n) of the mean's standard error: widen it back (Davison &
+        # Hinkley 1997, 3.3), keeping it positive; with three seeds the per-scene spread is still only roughly known.
+        widen = math.sqrt(count / (count - 1)) if count > 1 else 1.0
+
+        def mean_of(values):
+            centre = values.mean()
+            return np.maximum(centre + widen * (values[indices].mean(axis=-1) - centre), 1e-9 * centre)
+
+        ratio = mean_of(self.numerator) / mean_of(self.denominator)
+        seconds = self.seconds * (1.0 + self.timing) ** (generator.standard_normal(shape) / NORMAL_QUANTILE)
+        fit = self.fit
+        c, fitted_floor = fit.mean_fit(self.metric)
+        lowest, highest = fit.spp_range
+
+        def own(at):  # PT's debiased value at time ``at`` (its spp clamped to the ladder), seeds' mean fit
+            spp = np.clip((at - fit.intercept) / fit.slope, lowest, highest)
+            return c / spp + fitted_floor - self.floor
+
+        here, moved = own(self.seconds), own(seconds)
+        ratio = np.where((moved > 0) & (here > 0), ratio * here / np.where(moved > 0, moved, 1.0), ratio)
+        # The speed-up of each ratio, as equal_quality_speedup maps it (bounded by PT's ladder at both ends).
+        target = self.floor + ratio * moved - fitted_floor
+        spp = np.where(target > 0, c / np.where(target > 0, target, 1.0), np.inf)
+        spp = np.clip(spp, lowest, highest)
+        speedup = (fit.intercept + fit.slope * spp) / seconds
+        return np.log(ratio), np.log(speedup)
+
+
+def _geometric_mean(values):
+    values = np.asarray(values, dtype=np.float64)
+    return float(np.exp(np.mean(np.log(values))))
+
+
+def bootstrap_geometric_means(cells, *, resamples=RESAMPLES, seed=BOOTSTRAP_SEED):
+    """Percentile intervals of the geometric means of ratio and speed-up over ``cells`` (judged
+    :class:`SceneCell` s): scenes resampled with replacement, then each chosen scene's seeds and time.
+
+    Returns
+    -------
+    dict
+        ``ratio_low``, ``ratio_high``, ``speedup_low``, ``speedup_high``
+        (``nan`` when there is no cell).
+    """
+    if not cells:
+        return dict.fromkeys(("ratio_low", "ratio_high", "speedup_low", "speedup_high"), math.nan)
+    generator = np.random.default_rng(seed)
+    count = len(cells)
+    chosen = generator.integers(0, count, (resamples, count))  # the scenes of each resample
+    log_ratio, log_speedup = np.zeros(resamples), np.zeros(resamples)
+    for index, cell in enumerate(cells):
+        ratios, speedups = cell.draws(generator, (resamples, count))  # one independent draw per slot
+        where = chosen == index
+        log_ratio += np.where(where, ratios, 0.0).sum(axis=1)
+        log_speedup += np.where(where, speedups, 0.0).sum(axis=1)
+    ratios, speedups = np.exp(log_ratio / count), np.exp(log_speedup / count)
+    tail = 100 * (1 - CONFIDENCE) / 2
+    ratio_low, ratio_high = np.percentile(ratios, [tail, 100 - tail])
+    speedup_low, speedup_high = np.percentile(speedups, [tail, 100 - tail])
+    return {"ratio_low": float(ratio_low), "ratio_high": float(ratio_high), "speedup_low": float(speedup_low),
+            "speedup_high": float(speedup_high)}
+
+
+def aggregate(scenes, *, baseline="pt", resamples=RESAMPLES, seed=BOOTSTRAP_SEED):
+    """One record per (method, spp) over a suite's scenes, with :data:`AGGREGATE_COLUMNS`.
+
+    Parameters
+    ----------
+    scenes : list of (str, list of dict, BaselineFit or None, list of dict)
+        Per scene: its name, its rows (with the equal-time columns), PT's
+        fits and its summary records (:func:`~sparselt.experiments.equal_time.judge`).
+    baseline : str
+        The baseline's row (not aggregated).
+    resamples, seed : int
+        The bootstrap's resamples and seed (the same seed gives the same bytes).
+
+    Returns
+    -------
+    list of dict
+        In the order methods and budgets first appear.
+    """
+    cells = {}
+    for name, rows, fit, summary in scenes:
+        for record in summary:
+            if record["method"] == baseline:
+                continue
+            group = [row for row in rows if row["method"] == record["method"] and row["spp"] == record["spp"]]
+            cells.setdefault((record["method"], record["spp"]), []).append(SceneCell(name, record, group, fit))
+    records = []
+    for (method, spp), members in cells.items():
+        judged = [cell for cell in members if cell.judged]
+        interval = bootstrap_geometric_means(judged, resamples=resamples, seed=seed)
+        bounds = {cell.bound for cell in judged if cell.bound}
+        record = dict.fromkeys(AGGREGATE_COLUMNS, "")
+        record.update(
+            method=method, spp=spp, scenes=len(members), scenes_judged=len(judged),
+            wins=sum(cell.verdict == "wins" for cell in members),
+            within_noise=sum(cell.verdict == "within noise" for cell in members),
+            loses=sum(cell.verdict == "loses" for cell in members),
+            reference_limited=sum(cell.verdict == "reference-limited" for cell in members))
+        record["other"] = len(members) - record["wins"] - record["within_noise"] - record["loses"] - record[
+            "reference_limited"]
+        if judged:
+            record.update(
+                speedup_geometric_mean=_geometric_mean([cell.speedup for cell in judged]),
+                speedup_ci_low=interval["speedup_low"], speedup_ci_high=interval["speedup_high"],
+                speedup_bounded_scenes=sum(bool(cell.bound) for cell in judged),
+                speedup_bound="" if not bounds else (bounds.pop() if len(bounds) == 1 else "both"),
+                relmse_ratio_geometric_mean=_geometric_mean([cell.ratio for cell in judged]),
+                relmse_ratio_ci_low=interval["ratio_low"], relmse_ratio_ci_high=interval["ratio_high"])
+            worst = min(judged, key=lambda cell: cell.speedup)
+            best = max(judged, key=lambda cell: cell.speedup)
+            record.update(worst_scene=worst.scene, worst_speedup=worst.speedup, worst_verdict=worst.verdict,
+                          best_scene=best.scene, best_speedup=best.speedup)
+        records.append(record)
+    return records
+
+
+def aggregate_verdict(record):
+    """``wins`` / ``loses`` / ``within noise`` across the suite from the speed-up's interval (above 1 wins),
+    ``no judged scene`` without one."""
+    low, high = record.get("speedup_ci_low"), record.get("speedup_ci_high")
+    if not isinstance(low, float) or not (math.isfinite(low) and math.isfinite(high)):
+        return "no judged scene"
+    if low > 1:
+        return "wins"
+    if high < 1:
+        return "loses"
+    return "within noise"

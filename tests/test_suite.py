@@ -1,0 +1,212 @@
+"""Issue 36: ``sparselt suite`` runs a comparison per scene, aggregates with intervals, resumes, runs on Dask."""
+
+import csv
+import math
+import os
+
+import numpy as np
+import pytest
+
+from sparselt.cli import main
+from sparselt.experiments.suite import run_suite
+from sparselt.experiments.suite_aggregate import AGGREGATE_COLUMNS
+from sparselt.experiments.suite_config import read_suite
+from sparselt.experiments.suite_report import SUITE_COLUMNS
+from test_reproduce import chromium, rendered_dom  # noqa: F401  (the headless-browser fixture)
+
+SUITE = """\
+[suite]
+name = "two-scenes"
+methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]
+spp = [4, 16]
+seeds = [1, 2, 3]
+timing_repeats = 1
+reference_spp = 256
+resolution = [32, 32]
+pt_ladder_max_spp = 128
+
+[[scene]]
+name = "box"
+scene = "cornell-box"
+kind = "path"
+reason = "diffuse interreflection"
+
+[[scene]]
+name = "plane"
+scene = "scenes/plane.xml"
+kind = "dof"
+aperture = 0.05
+parameters = { tiles = 9 }
+"""
+
+XML = """<scene version="3.0.0">
+  <default name="tiles" value="5"/>
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0, 1, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/>
+      <rfilter type="box"/></film>
+  </sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="3"/></transform>
+    <bsdf type="diffuse"><texture type="checkerboard" name="reflectance">
+      <transform name="to_uv"><scale x="$tiles" y="$tiles"/></transform></texture></bsdf>
+  </shape>
+  <shape type="sphere"><point name="center" x="0.6" y="0.5" z="1.5"/><float name="radius" value="0.4"/>
+    <bsdf type="diffuse"/></shape>
+  <emitter type="constant"><rgb name="radiance" value="0.8"/></emitter>
+  <shape type="sphere"><point name="center" x="-2" y="4" z="2"/><float name="radius" value="0.5"/>
+    <emitter type="area"><rgb name="radiance" value="20"/></emitter></shape>
+</scene>
+"""
+
+
+def suite_file(folder):
+    (folder / "scenes").mkdir(parents=True, exist_ok=True)
+    (folder / "scenes" / "plane.xml").write_text(XML)
+    path = folder / "suite.toml"
+    path.write_text(SUITE)
+    return path
+
+
+def read_csv(path):
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A user's suite of a built-in scene and an XML scene with a variant, run once (in-process)."""
+    folder = tmp_path_factory.mktemp("suite")
+    config = read_suite(suite_file(folder))
+    out = folder / "out"
+    result = run_suite(config, out, progress=False)
+    return config, out, result
+
+
+def test_suite_csv_has_every_scenes_summary_with_its_scene(finished):
+    config, out, _ = finished
+    rows = read_csv(out / "suite.csv")
+    assert list(rows[0]) == list(SUITE_COLUMNS)
+    assert {row["scene"] for row in rows} == {"box", "plane"}
+    for name in ("box", "plane"):
+        own = read_csv(out / "scenes" / name / "summary.csv")
+        mine = [row for row in rows if row["scene"] == name]
+        assert [(row["method"], row["spp"]) for row in mine] == [(row["method"], row["spp"]) for row in own]
+        for row, theirs in zip(mine, own):  # the same verdicts and speed-ups as the scene's own report
+            assert row["verdict"] == theirs["verdict"]
+            if theirs["speedup_equal_quality"]:
+                assert float(row["speedup_equal_quality"]) == pytest.approx(
+                    float(theirs["speedup_equal_quality"]), rel=1e-5)
+        assert all(row["machine"] for row in mine)
+
+
+def test_the_aggregate_is_the_geometric_mean_over_scenes_with_an_interval_around_it(finished):
+    _, out, result = finished
+    aggregate = read_csv(out / "aggregate.csv")
+    assert list(aggregate[0]) == list(AGGREGATE_COLUMNS)
+    suite = read_csv(out / "suite.csv")
+    assert {(row["method"], row["spp"]) for row in aggregate} == {
+        (row["method"], row["spp"]) for row in suite if row["method"] != "pt"}
+    for record in aggregate:
+        cells = [row for row in suite if row["method"] == record["method"] and row["spp"] == record["spp"]]
+        judged = [row for row in cells if row["verdict"] in ("wins", "loses", "within noise", "one seed")]
+        counts = [int(record[key]) for key in ("wins", "within_noise", "loses", "reference_limited", "other")]
+        assert sum(counts) == int(record["scenes"]) == len(cells)
+        assert int(record["scenes_judged"]) == len(judged)
+        if not judged:
+            assert record["speedup_geometric_mean"] == ""
+            continue
+        speedups = [float(row["speedup_equal_quality"]) for row in judged]
+        assert float(record["speedup_geometric_mean"]) == pytest.approx(
+            math.exp(np.mean(np.log(speedups))), rel=1e-4)
+        low, high = float(record["speedup_ci_low"]), float(record["speedup_ci_high"])
+        assert low <= float(record["speedup_geometric_mean"]) <= high
+        ratio_low, ratio_high = float(record["relmse_ratio_ci_low"]), float(record["relmse_ratio_ci_high"])
+        assert ratio_low <= float(record["relmse_ratio_geometric_mean"]) <= ratio_high
+        worst = min(judged, key=lambda row: float(row["speedup_equal_quality"]))
+        assert record["worst_scene"] == worst["scene"]
+    assert "speed-up over PT" in result.table()
+
+
+def test_a_rerun_resumes_without_running_a_scene_again_and_writes_the_same_bytes(finished):
+    config, out, _ = finished
+    cells = sorted((out / "scenes" / "box" / "cells").iterdir())
+    before = {path.name: path.stat().st_mtime_ns for path in cells}
+    aggregate = (out / "aggregate.csv").read_bytes()
+    run_suite(config, out, progress=False)
+    assert {path.name: path.stat().st_mtime_ns for path in sorted((out / "scenes" / "box" / "cells").iterdir())} \
+        == before
+    assert (out / "aggregate.csv").read_bytes() == aggregate  # the bootstrap's seed is fixed
+
+
+def test_a_rerun_of_another_suite_into_the_folder_is_refused(finished, tmp_path):
+    import dataclasses
+
+    config, out, _ = finished
+    other = dataclasses.replace(config, seeds=(1, 2))
+    with pytest.raises(ValueError, match="another suite run"):
+        run_suite(other, out, progress=False)
+
+
+def test_the_page_opens_in_chromium_with_a_working_viewer_per_scene(finished, chromium):  # noqa: F811
+    _, out, _ = finished
+    dom = rendered_dom(chromium, out / "index.html")
+    assert 'data-broken-images=""' in dom
+    assert dom.count('data-ready="true"') == 2  # one viewer per scene, every image loaded
+    assert "aaf" not in dom.split("<body")[0]  # nothing of another suite
+    for name in ("box", "plane"):
+        assert f'href="scenes/{name}/index.html"' in dom
+        assert os.path.exists(out / "viewer" / name / "reference.png")
+        errors = [path for path in os.listdir(out / "viewer" / name) if path.endswith("_error.png")]
+        assert len(errors) == 3  # pt, oidn and the variant at matched time
+
+
+def test_the_cli_runs_a_user_suite(tmp_path, capsys):
+    path = suite_file(tmp_path)
+    text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
+    path.write_text(text.split("[[scene]]\nname = \"plane\"")[0])
+    assert main(["suite", str(path), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "bilateral:sigma_spatial=1.5" in printed and "index.html" in printed
+
+
+def test_a_loopback_cluster_gives_the_same_images_and_quality_as_in_process(finished, tmp_path):
+    """Two worker processes each holding the resource 'machine': same images and quality columns."""
+    from dask.distributed import LocalCluster
+
+    config, out, _ = finished
+    import dataclasses
+
+    config = dataclasses.replace(config, scenes=config.scenes[:1], spps=(4,))
+    local = tmp_path / "local"
+    run_suite(config, local, progress=False)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                      resources={"machine": 1}) as cluster:
+        remote = tmp_path / "remote"
+        run_suite(config, remote, progress=False, scheduler=cluster.scheduler_address)
+    images = sorted(path.name for path in (local / "scenes" / "box" / "images").iterdir() if path.suffix == ".npy")
+    for name in images:
+        if name.startswith("pt_"):
+            continue  # PT's ladder rungs follow the timings
+        assert (remote / "scenes" / "box" / "images" / name).read_bytes() == \
+            (local / "scenes" / "box" / "images" / name).read_bytes(), name
+    ours = {(row["method"], row["spp"]): row for row in read_csv(local / "suite.csv") if row["method"] != "pt"}
+    theirs = {(row["method"], row["spp"]): row for row in read_csv(remote / "suite.csv") if row["method"] != "pt"}
+    assert ours.keys() == theirs.keys() and ours
+    for key, row in ours.items():
+        for column in ("relmse", "relmse_trimmed", "ssim", "flip", "reference_spp", "luminance_ratio"):
+            assert row[column] == theirs[key][column], (key, column)
+    import json
+
+    record = json.loads((remote / "suite.json").read_text())
+    assert record["scenes"]["box"]["machine"]["threads"] == 1  # the worker's own thread count
+
+
+def test_a_cluster_without_machine_workers_is_refused_naming_the_recipe(finished, tmp_path):
+    from dask.distributed import LocalCluster
+
+    config, _, _ = finished
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
+        with pytest.raises(RuntimeError, match="--resources machine=1"):
+            run_suite(config, tmp_path / "x", progress=False, scheduler=cluster.scheduler_address)
