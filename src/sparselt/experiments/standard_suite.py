@@ -45,7 +45,7 @@ class Scale:
 SCALES = {
     "quick": Scale("quick", (128, 128), QUICK_METHODS, timing_repeats=2, reference_minutes=1.0,
                    pt_ladder_max_spp=512),
-    "default": Scale("default", (256, 256), STANDARD_METHODS, reference_minutes=4.0),
+    "default": Scale("default", (256, 256), STANDARD_METHODS, timing_repeats=2, reference_minutes=3.0),
     "paper": Scale("paper", (1024, 576), STANDARD_METHODS, reference_minutes=30.0, pt_ladder_max_spp=2048),
 }
 

@@ -149,7 +149,7 @@ class SuiteConfig:
         max_depth = scene.max_depth if scene.max_depth is not None else self.max_depth
         shape = scene.shape
         if shape is None and resolution is not None:
-            shape = default_shape(scene.kind, max_depth, tuple(resolution))
+            shape = suite_shape(scene.kind, max_depth, tuple(resolution))
         return ComparisonConfig(
             scene=scene.scene, kind=scene.kind, shape=None if shape is None else tuple(shape),
             methods=tuple(scene.methods or self.methods), spps=tuple(self.spps), seeds=tuple(self.seeds),
@@ -163,6 +163,33 @@ class SuiteConfig:
         record = dataclasses.asdict(self)
         record["scenes"] = [dataclasses.asdict(scene) for scene in self.scenes]
         return record
+
+
+#: The most cells a suite's default grid has (a float32 signal of 1 GiB); a scene's own ``shape`` may have more.
+MAXIMUM_DEFAULT_CELLS = 2**28
+
+
+def suite_shape(kind, max_depth, resolution):
+    """A scene's grid when the suite gives none: the resolution, then the kind's default cells per axis
+    (:func:`~sparselt.rendering.layout.default_shape`), halved until the grid has at most
+    :data:`MAXIMUM_DEFAULT_CELLS` cells (down to one cell per axis).
+
+    A path kind at depth 3 has eight path-vertex axes: 256x256 pixels at the default 4 cells per axis would be
+    4.3e9 cells, more than a grid may hold; 2 per axis gives 1.7e7.
+
+    Examples
+    --------
+    >>> suite_shape("dof", 3, (256, 256))
+    (256, 256, 16, 16)
+    >>> suite_shape("path", 3, (256, 256))
+    (256, 256, 2, 2, 2, 2, 2, 2, 2, 2)
+    """
+    shape = default_shape(kind, max_depth, resolution)
+    image, cells = shape[:2], shape[2:]
+    size = cells[0] if cells else 1
+    while size > 1 and math.prod(image) * size ** len(cells) > MAXIMUM_DEFAULT_CELLS:
+        size //= 2
+    return tuple(image) + (size,) * len(cells)
 
 
 # --------------------------------------------------------------------------------------------- reading a file

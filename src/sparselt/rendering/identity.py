@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, is_dataclass
 
 from ..digest import bytes_digest, digest, file_digest
 
-_GENERATOR_MODULES = ("scenes.py", "procedural.py", "meshes.py")
+_GENERATOR_MODULES = ("scenes.py", "procedural.py", "standard_scenes.py", "meshes.py")
 
 
 

@@ -373,6 +373,7 @@ def read_xml_settings(path, parameters=()):
 
 def _load_procedural():
     from . import procedural  # noqa: F401  (registers its scenes)
+    from . import standard_scenes  # noqa: F401  (registers the standard benchmark scenes)
 
 
 def get_scene(name_or_path):
