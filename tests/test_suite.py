@@ -37,6 +37,13 @@ scene = "scenes/plane.xml"
 kind = "dof"
 aperture = 0.05
 parameters = { tiles = 9 }
+
+[[scene]]
+name = "plane-path"
+scene = "scenes/plane.xml"
+kind = "path"
+max_depth = 2
+parameters = { tiles = 3 }
 """
 
 XML = """<scene version="3.0.0">
@@ -76,7 +83,8 @@ def read_csv(path):
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory):
-    """A user's suite of a built-in scene and an XML scene with a variant, run once (in-process)."""
+    """A user's suite of a built-in scene and two XML scenes (one file, two parameter sets), a variant among its
+    methods, run once (in-process)."""
     folder = tmp_path_factory.mktemp("suite")
     config = read_suite(suite_file(folder))
     out = folder / "out"
@@ -88,8 +96,8 @@ def test_suite_csv_has_every_scenes_summary_with_its_scene(finished):
     config, out, _ = finished
     rows = read_csv(out / "suite.csv")
     assert list(rows[0]) == list(SUITE_COLUMNS)
-    assert {row["scene"] for row in rows} == {"box", "plane"}
-    for name in ("box", "plane"):
+    assert {row["scene"] for row in rows} == {"box", "plane", "plane-path"}
+    for name in ("box", "plane", "plane-path"):
         own = read_csv(out / "scenes" / name / "summary.csv")
         mine = [row for row in rows if row["scene"] == name]
         assert [(row["method"], row["spp"]) for row in mine] == [(row["method"], row["spp"]) for row in own]
@@ -153,9 +161,9 @@ def test_the_page_opens_in_chromium_with_a_working_viewer_per_scene(finished, ch
     _, out, _ = finished
     dom = rendered_dom(chromium, out / "index.html")
     assert 'data-broken-images=""' in dom
-    assert dom.count('data-ready="true"') == 2  # one viewer per scene, every image loaded
+    assert dom.count('data-ready="true"') == 3  # one viewer per scene, every image loaded
     assert "aaf" not in dom.split("<body")[0]  # nothing of another suite
-    for name in ("box", "plane"):
+    for name in ("box", "plane", "plane-path"):
         assert f'href="scenes/{name}/index.html"' in dom
         assert os.path.exists(out / "viewer" / name / "reference.png")
         errors = [path for path in os.listdir(out / "viewer" / name) if path.endswith("_error.png")]
@@ -165,7 +173,7 @@ def test_the_page_opens_in_chromium_with_a_working_viewer_per_scene(finished, ch
 def test_the_cli_runs_a_user_suite(tmp_path, capsys):
     path = suite_file(tmp_path)
     text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
-    path.write_text(text.split("[[scene]]\nname = \"plane\"")[0])
+    path.write_text(text.split("[[scene]]\nname = \"plane\"")[0])  # the built-in scene alone
     assert main(["suite", str(path), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
     printed = capsys.readouterr().out
     assert "bilateral:sigma_spatial=1.5" in printed and "index.html" in printed
