@@ -69,6 +69,8 @@ COMPARISONS = sorted(path.parent for path in EXPERIMENTS.rglob("summary.csv"))
 #: Comparison folders written before the equal-time protocol (issues 10-13, 2026-12-01).
 PRE_PROTOCOL = sorted(path.parent for path in EXPERIMENTS.glob("*/compare_summary.json"))
 TABLE_6_1 = sorted(EXPERIMENTS.glob("table61-*"))
+#: Committed suites (``sparselt suite``, issue 36): their scenes are comparison folders, checked as such.
+SUITES = sorted(path.parent for path in EXPERIMENTS.rglob("suite.json"))
 #: Their ``table_6_1.md``'s columns of our numbers: ``table_6_1.csv``'s column and the format it was printed with.
 TABLE_6_1_PRINTED = {
     "alpha": ("alpha", "g"), "spp/point": ("samples_per_point", "g"), "support detection": ("support_samples", ","),
@@ -196,7 +198,7 @@ def _name(folder):
 
 def test_every_committed_folder_is_checked_or_named():
     """A folder added to docs/experiments without a check here fails, rather than going unchecked."""
-    covered = {path.relative_to(EXPERIMENTS).parts[0] for path in COMPARISONS + PRE_PROTOCOL + TABLE_6_1}
+    covered = {path.relative_to(EXPERIMENTS).parts[0] for path in COMPARISONS + PRE_PROTOCOL + TABLE_6_1 + SUITES}
     folders = {path.name for path in EXPERIMENTS.iterdir() if path.is_dir()}
     assert folders - covered - set(NOT_RECOMPUTED) == set()
     assert len(COMPARISONS) >= 13 and len(PRE_PROTOCOL) == 12 and len(TABLE_6_1) == 2
@@ -336,3 +338,29 @@ def test_table_4_1_reproduces_from_its_measurements():
     for index, table in enumerate((complexity_table(result, config), measurement_table(result, config, "time"),
                                    measurement_table(result, config, "memory"))):
         assert_same_tables(committed[index], table.grid(), table.caption)
+
+
+
+@pytest.mark.parametrize("folder", SUITES, ids=_name)
+def test_a_suites_aggregate_reproduces_from_its_scenes(folder):
+    """``aggregate.csv`` comes out again from the scenes' ``results.csv`` (the bootstrap's seed is recorded)."""
+    from sparselt.experiments.suite_aggregate import aggregate
+
+    record = json.loads((folder / "suite.json").read_text())
+    assert record["status"] == "complete" and record["bootstrap"]["resamples"] > 0
+    scenes = []
+    for scene in record["config"]["scenes"]:
+        _, rows, summary, fit = recompute(folder / "scenes" / scene["name"])
+        scenes.append((scene["name"], rows, fit, summary))
+    recomputed = aggregate(scenes, resamples=record["bootstrap"]["resamples"], seed=record["bootstrap"]["seed"])
+    with open(folder / "aggregate.csv", newline="") as handle:
+        expected = list(csv.DictReader(handle))
+    assert [(row["method"], str(row["spp"])) for row in recomputed] == [(row["method"], row["spp"])
+                                                                        for row in expected]
+    for row, want in zip(recomputed, expected):
+        for key, text in want.items():
+            mine = row[key]
+            if isinstance(mine, (int, float)) and text:
+                assert same_number(float(text), float(mine)), (row["method"], row["spp"], key, text, mine)
+            else:
+                assert text == ("" if mine in ("", None) else str(mine)), (row["method"], row["spp"], key)
