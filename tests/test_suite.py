@@ -106,7 +106,7 @@ def test_suite_csv_has_every_scenes_summary_with_its_scene(finished):
             if theirs["speedup_equal_quality"]:
                 assert float(row["speedup_equal_quality"]) == pytest.approx(
                     float(theirs["speedup_equal_quality"]), rel=1e-5)
-        assert all(row["machine"] for row in mine)
+        assert all(row["machine"] == mine[0]["machine"] and "threads" in row["machine"] for row in mine)
 
 
 def test_the_aggregate_is_the_geometric_mean_over_scenes_with_an_interval_around_it(finished):

@@ -59,6 +59,10 @@ def run_scene(comparison, out, cache_directory, *, progress=False, threads=None)
     """
     started = time.perf_counter()
     result = compare(comparison, out, progress=progress, cache_directory=cache_directory)
+    if threads is None:
+        from ..rendering.mitsuba import thread_count
+
+        threads = thread_count()
     return {"machine": machine_record(threads), "seconds": time.perf_counter() - started,
             "compare_seconds": result.seconds, "reference": {key: result.reference.get(key) for key in (
                 "spp", "floor", "floor_trimmed", "passes", "met") if key in result.reference}}

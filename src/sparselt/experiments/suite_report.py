@@ -185,6 +185,12 @@ def write_viewer_images(folder, name, scene_folder, rows):
     return {"label": "reference", "image": f"{base}/reference.png", "caption": ""}, entries, legend
 
 
+def machine_text(machine):
+    """Where a scene was timed, in words: host, processors and the renderer's threads (when recorded)."""
+    threads = f", {machine['threads']} threads" if machine.get("threads") else ""
+    return f"{machine['host']} ({machine['cpus']} cpus{threads})"
+
+
 def scene_sentences(name, summary):
     """The scene's best and worst method at each budget, in words."""
     sentences = []
@@ -210,10 +216,9 @@ def write_suite_outputs(folder, config, records, *, seconds):
     for scene in config.scenes:
         rows, fit, summary, attributes = judged_comparison(folder.path_of(f"{SCENES}/{scene.name}"))
         scenes.append((scene.name, rows, fit, summary))
-        machine = records[scene.name]["machine"]
+        machine = machine_text(records[scene.name]["machine"])
         for record in summary:
-            suite_rows.append(dict(record, scene=scene.name, kind=scene.kind,
-                                   machine=f"{machine['host']} ({machine['cpus']} cpus)"))
+            suite_rows.append(dict(record, scene=scene.name, kind=scene.kind, machine=machine))
     folder.write_text("suite.csv", csv_text(suite_rows, SUITE_COLUMNS))
     aggregated = aggregate(scenes)
     folder.write_text("aggregate.csv", csv_text(aggregated, AGGREGATE_COLUMNS))
@@ -232,9 +237,8 @@ def write_suite_outputs(folder, config, records, *, seconds):
     for index, (scene, (name, rows, fit, summary)) in enumerate(zip(config.scenes, scenes)):
         reference, entries, legend = write_viewer_images(folder, name, folder.path_of(f"{SCENES}/{name}"), rows)
         record = records[name]
-        machine = record["machine"]
         introduction = (f"{scene.reason + ' ' if scene.reason else ''}Scene {scene.scene!r}, kind {scene.kind}; "
-                        f"timed on {machine['host']} ({machine['cpus']} cpus); reference "
+                        f"timed on {machine_text(record['machine'])}; reference "
                         f"{record.get('reference', {}).get('spp', '?')} spp; {record['seconds']:.0f} s.")
         sections.append(Section(title=f"Scene {name}", introduction=introduction,
                                 verdicts=scene_sentences(name, summary),

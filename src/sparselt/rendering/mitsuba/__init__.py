@@ -42,7 +42,7 @@ from .launch import SEED_LIMIT, SampleCount, count_samples, fold_seed, launch
 from .pixel_statistics import PIXEL_STATISTICS, REDUCTIONS, sample_pixel_statistics
 from .pixels import sample_pixels
 from .runtime import (DEFAULT_VARIANT, MINIMUM_LLVM, SUPPORTED_VARIANTS, find_llvm_library, initialize, modules,
-                      set_thread_count, versions)
+                      set_thread_count, thread_count, versions)
 from .scene import MitsubaScene
 from .scene_dictionaries import (COHERENT_LENS_ANGLE, camera_from_sensor, coherent_camera_rays, load_scene_file,
                                  sensor_dictionary, sensor_type, to_mitsuba_dict, to_mitsuba_transform)
@@ -53,6 +53,6 @@ __all__ = [
     "SampleCount", "camera_from_sensor", "coherent_camera_rays", "count_samples", "find_llvm_library", "fold_seed",
     "gradient_paths", "initialize", "launch", "load_scene_file", "modules", "path_contribution", "render_aovs",
     "render_estimator", "render_guided", "render_path", "sample_cells", "sample_gradients",
-    "sample_pixel_statistics", "sample_pixels", "sensor_dictionary", "sensor_type", "set_thread_count",
+    "sample_pixel_statistics", "sample_pixels", "sensor_dictionary", "sensor_type", "set_thread_count", "thread_count",
     "to_mitsuba_dict", "to_mitsuba_transform", "versions", "warp_points",
 ]

@@ -122,6 +122,13 @@ def set_thread_count(count):
         drjit_module.set_thread_count(int(count))
 
 
+def thread_count():
+    """The size of Dr.Jit's CPU thread pool (the threads a render uses)."""
+    import drjit as drjit_module
+
+    return int(drjit_module.thread_count())
+
+
 def versions():
     """Versions of the rendering stack, for provenance records."""
     import drjit as drjit_module
