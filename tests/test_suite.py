@@ -218,3 +218,30 @@ def test_a_cluster_without_machine_workers_is_refused_naming_the_recipe(finished
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         with pytest.raises(RuntimeError, match="--resources machine=1"):
             run_suite(config, tmp_path / "x", progress=False, scheduler=cluster.scheduler_address)
+
+
+def test_an_interrupted_suite_resumes_where_it_stopped(tmp_path, monkeypatch):
+    """Interrupted in its second scene, the rerun keeps the first scene's folder untouched and finishes."""
+    import dataclasses
+
+    import sparselt.experiments.suite as suite_module
+
+    config = read_suite(suite_file(tmp_path))
+    config = dataclasses.replace(config, scenes=config.scenes[:2], spps=(4,), seeds=(1, 2))
+    real = suite_module.run_scene
+
+    def interrupted(comparison, out, cache_directory, **options):
+        if comparison.kind == "dof":
+            raise KeyboardInterrupt
+        return real(comparison, out, cache_directory, **options)
+
+    monkeypatch.setattr(suite_module, "run_scene", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_suite(config, tmp_path / "out", progress=False)
+    assert (tmp_path / "out" / "cells" / "box.json").exists() and not (tmp_path / "out" / "index.html").exists()
+    first = {path.name: path.stat().st_mtime_ns for path in (tmp_path / "out" / "scenes" / "box").rglob("*")}
+    monkeypatch.setattr(suite_module, "run_scene", real)
+    result = run_suite(config, tmp_path / "out", progress=False)
+    assert {path.name: path.stat().st_mtime_ns for path in (tmp_path / "out" / "scenes" / "box").rglob("*")
+            if path.name in first} == first
+    assert {row["scene"] for row in result.rows} == {"box", "plane"}
