@@ -68,9 +68,11 @@ def test_image_is_the_mean_over_non_image_axes_transposed(tmp_path, cornell):
 
 
 def test_existing_signal_needs_overwrite(tmp_path, cornell):
-    acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell)
-    with pytest.raises(ValueError, match="--overwrite"):
-        acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell)
+    first = acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell)
+    again = acquire_signal(_config(), tmp_path / "s", progress=False, scene_spec=cornell)  # complete: returned as is
+    assert again.meta["provenance"] == first.meta["provenance"]
+    with pytest.raises(ValueError, match=r"another configuration \(seed: 2 recorded, 5 now\); pass --overwrite"):
+        acquire_signal(_config(seed=5), tmp_path / "s", progress=False, scene_spec=cornell)
     replaced = acquire_signal(_config(seed=5), tmp_path / "s", overwrite=True, progress=False, scene_spec=cornell)
     assert replaced.meta["seed"] == 5
 
@@ -89,7 +91,8 @@ def test_output_under_a_file_is_refused_naming_it(tmp_path, cornell):
     with pytest.raises(ValueError) as raised:
         acquire_signal(_config(), target, progress=False, scene_spec=cornell)
     assert raised.type is ValueError
-    assert str(raised.value) == f"cannot create the output folder {str(target)!r}: Not a directory"
+    assert str(raised.value) == (f"output path {str(target)!r} cannot be created: {str(tmp_path / 'file')!r} is a "
+                                 "file, not a folder; choose another --out")
     assert (tmp_path / "file").read_text() == "x"
 
 
@@ -102,7 +105,8 @@ def test_output_in_a_read_only_folder_is_refused_naming_it(tmp_path, cornell):
     with pytest.raises(ValueError) as raised:
         acquire_signal(_config(), target, progress=False, scene_spec=cornell)
     assert raised.type is ValueError
-    assert str(raised.value) == f"cannot create the output folder {str(target)!r}: Permission denied"
+    assert str(raised.value) == (f"cannot create the output folder {str(target)!r}: no permission to write there; "
+                                 "choose another --out")
 
 
 def test_resume_after_kill_gives_the_same_data(tmp_path):

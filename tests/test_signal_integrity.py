@@ -24,7 +24,7 @@ from sparselt.storage import CorruptSignalError, zarr_store
 
 CONFIG = AcquisitionConfig(scene="cornell-box", kind="dof", shape=(16, 16, 2, 2), spp=1, seed=3, aperture=0.1)
 CHUNK_CELLS = 128  # 8 chunks of 2 x 16 x 2 x 2 cells
-REPAIR = "rerun the same `sparselt sample` command to repair it"
+REPAIR = "rerun the same `sparselt sample` command with --verify to repair it"
 
 
 def sample(path, config=CONFIG, **options):

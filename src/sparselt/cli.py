@@ -192,6 +192,9 @@ def build_parser():
                         help="longest path, Mitsuba convention (default: %(default)s)")
     sample.add_argument("--out", required=True, help="signal folder to write")
     sample.add_argument("--overwrite", action="store_true", help="replace an existing signal")
+    sample.add_argument("--verify", action="store_true",
+                        help="check every chunk of a finished signal against its CRC-32 and sample the damaged ones "
+                             "again (a rerun otherwise reads only the chunks whose files changed)")
     sample.add_argument("--nonfinite", choices=NONFINITE_POLICIES, default=defaults["nonfinite"],
                         help="NaN/Inf samples: stop with an error (default) or count them and use 0")
     sample.add_argument("--chunk-cells", type=int, default=None, help="cells per chunk (default: about 4M samples)")
@@ -437,7 +440,7 @@ def _add_cluster_options(parser, what):
 
 
 def _sample(arguments):
-    from .rendering.acquire import THESIS_PRESETS, AcquisitionConfig, acquire_signal
+    from .rendering.acquire import THESIS_PRESETS, AcquisitionConfig, acquire_signal, complete_signal
 
     shape = THESIS_PRESETS[arguments.kind] if arguments.preset == "thesis" else arguments.shape
     config = AcquisitionConfig(
@@ -453,9 +456,17 @@ def _sample(arguments):
         nonfinite=arguments.nonfinite,
         scene_parameters=arguments.parameters,
     )
+    if not arguments.overwrite:  # a rerun of a finished command: nothing to do, and it says so
+        signal = complete_signal(config, arguments.out, verify=arguments.verify)
+        if signal is not None:
+            checked = ("every chunk matches its CRC-32" if arguments.verify
+                       else "no chunk changed since it was written; --verify reads every chunk")
+            print(f"{arguments.out} is complete: {signal.kind} signal, axes {', '.join(signal.axes)}, shape "
+                  f"{signal.shape}; nothing to do ({checked})")
+            return 0
     signal = acquire_signal(config, arguments.out, overwrite=arguments.overwrite,
                             progress=not arguments.no_progress, chunk_cells=arguments.chunk_cells,
-                            workers=arguments.workers, scheduler=arguments.scheduler)
+                            workers=arguments.workers, scheduler=arguments.scheduler, verify=arguments.verify)
     print(f"wrote {arguments.out}: {signal.kind} signal, axes {', '.join(signal.axes)}, shape {signal.shape}, "
           f"{signal.meta.get('sampling_seconds', 0):.1f} s of sampling")
     return 0
@@ -623,17 +634,16 @@ def _show(arguments):
 
 
 def _describe(error):
-    """A one-line message for an error; operating-system errors say what failed on which path."""
+    """A one-line message for an error; operating-system errors say what failed on which path
+    (:func:`sparselt.storage.errors.os_error_reason`) and what to do."""
     if isinstance(error, OSError) and error.strerror:  # raised by the operating system, not by sparselt
-        reason = error.strerror or type(error).__name__
-        target = f" {error.filename!r}" if error.filename else ""
-        hints = {30: "the file system is read-only: choose an output folder on a writable disk",
-                 28: "the disk is full: free space or choose another disk",
-                 20: "a part of the path is a file, not a folder",
-                 21: "the path is a folder, not a file",
-                 13: "no permission to write there"}
-        hint = hints.get(error.errno, "")
-        return f"{reason}:{target}" + (f" ({hint})" if hint else "")
+        import errno
+
+        from .storage.errors import NO_SPACE_ERRORS, os_error_reason
+
+        fix = ("free some space, or choose another disk" if error.errno in NO_SPACE_ERRORS
+               else "choose a folder on a writable disk" if error.errno == errno.EROFS else "")
+        return os_error_reason(error) + (f"; {fix}" if fix else "")
     return str(error)
 
 

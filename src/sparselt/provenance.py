@@ -75,9 +75,9 @@ def atomic_write(path, write):
     Every artefact sparselt writes (EXR, PNG, CSV, JSON, npy, HTML, Markdown)
     goes through here, so an interrupted run never leaves a half-written file
     under a final name. A full disk is reported as
-    :class:`~sparselt.storage.zarr_store.DiskFullError` naming ``path``.
+    :class:`~sparselt.storage.errors.DiskFullError` naming ``path``.
     """
-    from .storage.zarr_store import no_space_is_clear
+    from .storage.errors import no_space_is_clear
 
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))

@@ -174,7 +174,7 @@ def load_signal(path, *, mmap=True):
         A chunk file is missing, or the recorded chunk checksums are missing,
         of the wrong length or wiped (and, on reading, a chunk does not match
         its checksum or cannot be decoded); rerun the same ``sparselt sample``
-        command to repair it.
+        command with ``--verify`` to repair it.
     ValueError
         The folder is in the old ``.npy`` format, or its metadata are not a
         signal's this version reads: unknown format version or kind, an

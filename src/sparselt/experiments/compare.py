@@ -57,9 +57,11 @@ from ..rendering.baseline import (
     METHOD_SEED_LIMIT,
     REFERENCE_SEED_LIMIT,
     check_wavefront,
+    reference_cache_directory,
 )
 from ..rendering.layout import KINDS
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
+from ..storage.cache import usable_cache_directory
 from ..report.comparison import results_table, write_comparison_outputs
 from ..report.comparison_rows import EXTRA_COLUMNS, RESULT_COLUMNS, in_comparison_order
 from ..results import COMPARISON_KIND  # the folder load_comparison reads
@@ -476,9 +478,11 @@ class ComparisonExperiment(Experiment):
         return self.setup.scene_identity
 
     def prepare(self):
-        """Load the scene once and check every method's preconditions again, now that a scene file's camera is
-        known: before the reference renders."""
+        """Check the reference's cache (one that cannot be used stops the run before anything is written), load the
+        scene once and check every method's preconditions again, now that a scene file's camera is known: before
+        the reference renders."""
         config = self.config
+        usable_cache_directory(self.cache_directory or reference_cache_directory())
         load_start = time.perf_counter()
         scene = self.setup.load(config.output_resolution)
         load_seconds = time.perf_counter() - load_start

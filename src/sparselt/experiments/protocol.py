@@ -193,6 +193,9 @@ def run_experiment(experiment, out, *, overwrite=False, progress=True):
     object
         What :meth:`Experiment.report` returns.
 
+    A rerun of a complete folder with nothing new to run says so on
+    standard output (and exits 0 from the CLI, like every rerun).
+
     Raises
     ------
     ValueError
@@ -205,13 +208,17 @@ def run_experiment(experiment, out, *, overwrite=False, progress=True):
     started = time.perf_counter()
     experiment.validate()
     folder = experiment_folder(experiment, out, overwrite=overwrite)
-    folder.inspect()  # refusals before any expensive work; nothing is changed yet
+    plan = folder.inspect()  # refusals before any expensive work; nothing is changed yet
+    was_complete = plan == "resume" and folder.status == "complete"
     state = experiment.prepare()
     with folder.open():
         experiment.begin(folder, state)
         records = experiment.run_cells(folder, state, progress=progress)
         result = experiment.report(folder, state, records)
         folder.complete(**dict({"seconds": time.perf_counter() - started}, **experiment.summary(result)))
+    if was_complete and not folder.recorded:
+        print(f"{experiment.kind}: {folder.path} is complete: an earlier run of the same command did every cell, "
+              "none was run again (the report was written again)")
     return result
 
 

@@ -44,6 +44,7 @@ from ..recovery.path_space import largest_energy_fraction
 from ..rendering import baseline
 from ..rendering.baseline import METHOD_SEED_LIMIT
 from ..rendering.setup import DEFAULT_MAX_DEPTH, DEFAULT_VARIANT, SceneSetup
+from ..storage.cache import usable_cache_directory
 from ..thesis.tables import THESIS_SHAPE, table_6_1
 from .protocol import Experiment, run_experiment
 from .comparison_cells import IMAGES
@@ -157,6 +158,8 @@ class Table61Experiment(Experiment):
         return self.config.setup.scene_identity
 
     def prepare(self):
+        """The reference's cache checked (it cannot be used: nothing starts), then the scene loaded."""
+        usable_cache_directory(baseline.reference_cache_directory())
         loaded = self.config.setup.load(tuple(self.config.shape[:2]))
         return loaded.scene, loaded.layout
 

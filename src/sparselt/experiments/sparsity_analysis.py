@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from ..analysis.metrics import image_ssim, peak_signal_to_noise_ratio, reference_exposure
+from ..analysis.metrics import WINDOW_SIZE, image_ssim, peak_signal_to_noise_ratio, reference_exposure
 from ..analysis.sparsity import signal_gini
 from ..analysis.threshold import check_fraction, check_gamma, gamma_map, hard_threshold_image
 from ..checks import check_integer
@@ -64,6 +64,17 @@ def _check_gammas(gammas):
     if len(set(gammas)) != len(gammas):
         raise ValueError(f"gammas {list(gammas)} repeat a value; give each gamma once")
     return gammas
+
+
+def _check_image_plane(signal):
+    """Refuse a signal whose image plane is smaller than the SSIM window (every SSIM would be NaN)."""
+    width, height = signal.shape[:2]
+    if min(width, height) < WINDOW_SIZE:
+        where = f"signal {signal.store!r}" if signal.store else "the signal"
+        shape = ",".join(map(str, (max(width, WINDOW_SIZE), max(height, WINDOW_SIZE)) + tuple(signal.shape[2:])))
+        raise ValueError(f"{where} has an image plane of {width}x{height} pixels, too small for SSIM (at least "
+                         f"{WINDOW_SIZE}x{WINDOW_SIZE} pixels): sample it again with a larger image plane, "
+                         f"e.g. --shape {shape}")
 
 
 def _mapped_signal(signal, gamma):
@@ -174,9 +185,10 @@ def analyze_signal(signal, out, *, gammas=DEFAULT_GAMMAS, fractions=DEFAULT_FRAC
     Raises
     ------
     ValueError
-        A gamma <= 0, a fraction outside (0, 1], a grid fraction not among
-        ``fractions``, or a folder holding another analysis (without
-        ``overwrite``) or files sparselt did not write: before any work.
+        An image plane smaller than the 11x11-pixel SSIM window, a gamma <= 0,
+        a fraction outside (0, 1], a grid fraction not among ``fractions``, or
+        a folder holding another analysis (without ``overwrite``) or files
+        sparselt did not write: before any work.
 
     References
     ----------
@@ -216,6 +228,7 @@ class AnalysisExperiment(Experiment):
         self.say = print if progress else (lambda *arguments, **options: None)
 
     def validate(self):
+        _check_image_plane(self.signal)
         self.gammas = _check_gammas(self.gammas)
         fractions = tuple(sorted(check_fraction(fraction) for fraction in self.fractions))
         if not fractions:
@@ -265,7 +278,7 @@ class AnalysisExperiment(Experiment):
         gamma_ssim = []
         for fraction in self.fractions:
             image = hard_threshold_image(state["data"], fraction, gamma=gamma).transpose(1, 0, 2)
-            similarity = image_ssim(image, reference) if min(reference.shape[:2]) >= 11 else float("nan")
+            similarity = image_ssim(image, reference)
             peak = float(np.percentile(reference, 99.9)) or 1.0
             psnr = peak_signal_to_noise_ratio(np.clip(image, 0, peak), np.clip(reference, 0, peak), data_range=peak)
             gamma_ssim.append((gamma, fraction, max(1, math.ceil(fraction * size)), similarity, psnr))

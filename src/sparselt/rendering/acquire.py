@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
 import math
 import os
 import shutil
@@ -39,6 +40,8 @@ from ..measurement import available_memory, progress_bar
 from ..provenance import environment_record, format_bytes
 from ..signal import Signal, load_signal
 from ..storage import zarr_store
+from ..storage.errors import is_link_loop, os_error_hint, output_path_problem
+from ..storage.folder import identity_differences, missing_folders, remove_empty_folders
 from ..storage.lock import LOCK_FILE, StoreLock, check_unlocked
 from ..storage.zarr_store import FORMAT, FORMAT_VERSION, ChunkGrid, ChunkJournal
 from .identity import describe_scene_change
@@ -252,7 +255,7 @@ def sample_chunk(job):
 
 
 def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_cells=None, scene_spec=None,
-                   workers=None, scheduler=None):
+                   workers=None, scheduler=None, verify=False):
     """Sample a signal, in memory or into a resumable signal store.
 
     Parameters
@@ -269,8 +272,10 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         survives a failed run. An incomplete signal of the same configuration
         and scene is always resumed, and so is a complete one of the same
         configuration and scene with damaged chunks (they are sampled again).
-        A folder holding files a signal store does not is refused, even with
-        ``overwrite``.
+        A complete one of the same configuration and scene, undamaged, is
+        returned as it is (:func:`complete_signal`: only chunks whose files
+        changed since they were written are read to tell). A folder holding
+        files a signal store does not is refused, even with ``overwrite``.
     progress : bool, optional
         Show a progress bar (samples, rate, ETA) on standard error.
     chunk_cells : int, optional
@@ -286,6 +291,9 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
     scheduler : str, optional
         Sample on the existing Dask cluster of this scheduler; its workers
         must reach ``path`` (a shared file system).
+    verify : bool, optional
+        Check every chunk of a complete store against its CRC-32 (not only
+        those whose files changed) and sample the damaged ones again.
 
     Returns
     -------
@@ -341,7 +349,12 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
         path = os.path.abspath(os.fspath(path))
         identity = setup.scene_identity
         check_unlocked(path)
-        plan = _inspect_store(path, config, identity, overwrite=overwrite)
+        plan = _inspect_store(path, config, identity, overwrite=overwrite, verify=verify)
+        if plan == "complete":
+            signal = _settle_complete_store(path, config, identity, verify)
+            if signal is not None:
+                return signal
+            plan = _inspect_store(path, config, identity, overwrite=overwrite, verify=verify)
         _check_disk_space(path, grid if plan not in ("resume", "repair") else None)  # again with the cluster's chunking
 
     # Loading the scene checks the file (syntax, sensor, references) before anything is written or removed.
@@ -364,7 +377,8 @@ def acquire_signal(config, path=None, *, overwrite=False, progress=True, chunk_c
                 grid = _chunking(config, chunk_cells, parallelism=sum(job.concurrency.values()))
                 job = dataclasses.replace(job, grid=grid)
                 _check_disk_space(path, grid if plan not in ("resume", "repair") else None)
-            return _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client)
+            return _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client,
+                                       verify)
     finally:
         _WORKER_SCENES.clear()  # the scene is not kept alive after the run
 
@@ -378,7 +392,7 @@ def _chunking(config, chunk_cells, *, parallelism):
     return ChunkGrid.for_cells(config.shape, target)
 
 
-def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client):
+def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwrite, progress, client, verify=False):
     """Write (or resume, repair or replace) the store at ``path`` under its lock; return the loaded signal.
 
     A replacement ('replace') is written beside the old store, in the hidden
@@ -393,19 +407,19 @@ def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwr
     recovered = zarr_store.recover_replacement(path)
     if recovered and progress:
         print(f"note: {recovered} ({path!r})")
-    created = not os.path.exists(path)
+    created = missing_folders(path)
     try:
         os.makedirs(path, exist_ok=True)
     except OSError as error:
-        raise ValueError(f"cannot create the output folder {path!r}: {error.strerror}") from None
+        raise ValueError(f"cannot create the output folder {path!r}: {os_error_hint(error, path)}; "
+                         "choose another --out") from None
     if not os.access(path, os.W_OK | os.X_OK):
         raise PermissionError(f"output folder {path!r} is not writable")
     lock = StoreLock(path)
     try:
         lock.acquire()
     except BaseException:
-        if created and not os.listdir(path):
-            os.rmdir(path)
+        remove_empty_folders(created)  # the folders this run created, while empty (a failed lock leaves no file)
         raise
     staging = zarr_store.sibling_path(path, "new")
     staging_lock = None
@@ -413,7 +427,9 @@ def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwr
         if lock.previous_holder:
             holder = lock.previous_holder
             print(f"note: took over the lock of a run that is gone (PID {holder.get('pid')} on {holder.get('host')})")
-        plan = _inspect_store(path, config, identity, overwrite=overwrite)  # again, now that the store is ours
+        plan = _inspect_store(path, config, identity, overwrite=overwrite, verify=verify)  # again, now it is ours
+        if plan == "complete":  # another run finished it meanwhile
+            return load_signal(path)
         target = path
         if plan == "replace":
             target = staging
@@ -430,7 +446,7 @@ def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwr
         if plan == "repair":
             meta = zarr_store.read_attributes(target)
             grid = ChunkGrid(tuple(meta["shape"]), tuple(meta["chunk_shape"]))
-            finished = _damaged_to_journal(target, grid, meta, journal, progress)
+            finished = _damaged_to_journal(target, grid, meta, journal, progress, verify)
         elif plan == "resume":
             meta = zarr_store.read_attributes(target)
             grid = ChunkGrid(tuple(meta["shape"]), tuple(meta["chunk_shape"]))
@@ -457,7 +473,7 @@ def _acquire_into_store(path, config, spec, scene, layout, job, identity, overwr
             staging_lock.release()
 
 
-def _damaged_to_journal(path, grid, meta, journal, progress):
+def _damaged_to_journal(path, grid, meta, journal, progress, verify=False):
     """Turn a complete store with damaged chunks back into an unfinished one whose journal lists the intact chunks.
 
     The store is marked incomplete first, so a run killed while repairing it
@@ -466,7 +482,8 @@ def _damaged_to_journal(path, grid, meta, journal, progress):
     """
     try:
         checksums = zarr_store.recorded_checksums(path, meta, grid.count)
-        damaged = set(zarr_store.damaged_chunks(path, grid, checksums))
+        # As the inspection found them: the chunks it read and found intact are not read again.
+        damaged = set(_damaged_chunks_of_complete_store(path, meta, verify=verify))
     except zarr_store.CorruptSignalError:
         checksums, damaged = (), set(range(grid.count))  # nothing can be verified: every chunk is sampled again
     counts = meta.get("chunk_nonfinite")
@@ -478,7 +495,7 @@ def _damaged_to_journal(path, grid, meta, journal, progress):
         print(f"note: {len(damaged)} of the {grid.count} chunks of the complete signal {path!r} are missing or damaged"
               f"{f' (first: chunk {min(damaged)})' if damaged else ''}; sampling them again")
     journal.rewrite(records)
-    meta = {key: value for key, value in meta.items() if key not in ("chunk_crc32", "chunk_nonfinite")}
+    meta = {key: value for key, value in meta.items() if key not in ("chunk_crc32", "chunk_nonfinite", "chunk_files")}
     meta["status"] = "incomplete"
     zarr_store.write_attributes(path, meta)
     return records
@@ -574,7 +591,8 @@ def _finish(path, grid, journal):
     meta = zarr_store.read_attributes(path)
     meta.update(status="complete", nonfinite_samples=nonfinite_total,
                 chunk_crc32=[records[index]["crc32"] for index in range(grid.count)],
-                chunk_nonfinite=[records[index]["nonfinite"] for index in range(grid.count)])
+                chunk_nonfinite=[records[index]["nonfinite"] for index in range(grid.count)],
+                chunk_files=zarr_store.chunk_signatures(path, grid))  # a rerun tells changed chunks by these
     meta["sampling_seconds"] = meta.get("sampling_seconds", 0.0) + sum(record["seconds"] for record in records.values())
     zarr_store.write_attributes(path, meta)
     journal.remove()
@@ -620,7 +638,7 @@ def _check_disk_space(path, grid):
     nbytes = grid.count * -(-chunk_bytes // block) * block + 4 * block  # uncompressed: an upper bound
     if nbytes > free:
         raise ValueError(f"the signal takes up to {format_bytes(nbytes)} but only {format_bytes(free)} of disk is free "
-                         f"at {path!r}")
+                         f"at {path!r}: free some space there, or choose another --out on a disk with room")
 
 
 def _meta(config, spec, scene, layout, identity, grid, *, status):
@@ -659,18 +677,22 @@ def _meta(config, spec, scene, layout, identity, grid, *, status):
     }
 
 
-def _inspect_store(path, config, identity, *, overwrite):
-    """What to do with ``path``: 'new', 'resume', 'repair' or 'replace' (the store's data are not changed here).
+def _inspect_store(path, config, identity, *, overwrite, verify=False):
+    """What to do with ``path``: 'new', 'resume', 'repair', 'replace' or 'complete' (the store's data are not
+    changed here).
 
     'replace' (``overwrite``) writes the new store beside the old one and
     swaps them once it is complete; 'repair' samples again the damaged chunks
     of a complete store of this configuration and scene (missing, not
-    decodable, or not matching their recorded CRC-32). A folder holding
-    anything a signal store does not is refused, ``overwrite`` or not.
-    Refusals raise ValueError.
+    decodable, or not matching their recorded CRC-32); 'complete' is such a
+    store with none: nothing to do. Only the chunks whose files changed since
+    the store recorded them are read to tell (every chunk with ``verify``).
+    A folder holding anything a signal store does not is refused,
+    ``overwrite`` or not. Refusals raise ValueError.
     """
-    if os.path.exists(path) and not os.path.isdir(path):
-        raise ValueError(f"output path {path!r} is an existing file, not a folder")
+    problem = output_path_problem(path)  # a link loop, a broken link, a file, a file in the way
+    if problem:
+        raise ValueError(f"output path {path!r} {problem}")
     if os.path.isdir(path):
         zarr_store.check_not_foreign(path)
     status = zarr_store.store_status(path)
@@ -688,12 +710,14 @@ def _inspect_store(path, config, identity, *, overwrite):
         if overwrite:
             return "replace"
         meta = zarr_store.read_attributes(path)
-        if (_same_signal(meta.get("config") or {}, config.record())
-                and (meta.get("scene_identity") or {}).get("digest") == identity["digest"]
-                and _damaged_chunks_of_complete_store(path, meta)):
+        _check_same_complete_signal(path, meta, config, identity)
+        damaged = _damaged_chunks_of_complete_store(path, meta, verify=verify)
+        if damaged is None:  # metadata this version cannot repair (reading the signal says what is wrong)
+            raise ValueError(f"signal {path!r} already exists; pass --overwrite to replace it")
+        if damaged:
             _record_nonfinite_policy(path, meta, config)
             return "repair"
-        raise ValueError(f"signal {path!r} already exists; pass --overwrite to replace it")
+        return "complete"
     if status == "legacy":
         if not overwrite:
             raise ValueError(f"{path!r} holds a signal in the old .npy folder format; pass --overwrite to replace it")
@@ -727,20 +751,125 @@ def _record_nonfinite_policy(path, meta, config):
         zarr_store.write_attributes(path, meta)
 
 
-def _damaged_chunks_of_complete_store(path, meta):
-    """Damaged chunks of a complete store (all of them when its checksums are unusable); ``[]`` when its
-    metadata do not describe a chunking this version can repair."""
+def _check_same_complete_signal(path, meta, config, identity):
+    """Refuse a complete store of another configuration or scene (``--overwrite`` replaces it), naming what
+    differs."""
+    recorded = {key: value for key, value in (meta.get("config") or {}).items() if key != "nonfinite"}
+    requested = {key: value for key, value in config.record().items() if key != "nonfinite"}
+    if recorded != requested:
+        difference = identity_differences(recorded, requested)
+        raise ValueError(f"signal {path!r} already exists with another configuration ({difference}); pass "
+                         "--overwrite to replace it, or choose another --out")
+    if (meta.get("scene_identity") or {}).get("digest") != identity["digest"]:
+        changed = describe_scene_change(meta.get("scene_identity") or {}, identity)
+        raise ValueError(f"signal {path!r} already exists, sampled from another version of the scene"
+                         f"{' (' + changed + ')' if changed else ''}; pass --overwrite to replace it, or choose "
+                         "another --out")
+
+
+def _complete_grid(meta):
+    """The chunk grid a complete store's metadata describe, or ``None`` when this version cannot use them."""
     shape, chunk_shape = meta.get("shape"), meta.get("chunk_shape")
     if meta.get("format_version") != FORMAT_VERSION or not all(
             isinstance(sizes, list) and sizes and all(type(size) is int and size > 0 for size in sizes)
             for sizes in (shape, chunk_shape)) or len(shape) != len(chunk_shape):
-        return []
-    grid = ChunkGrid(tuple(shape), tuple(chunk_shape))
+        return None
+    return ChunkGrid(tuple(shape), tuple(chunk_shape))
+
+
+def _damaged_chunks_of_complete_store(path, meta, *, verify=False):
+    """Damaged chunks of a complete store (all of them when its checksums are unusable); ``None`` when its
+    metadata do not describe a chunking this version can repair.
+
+    Only the chunks whose files changed since the store recorded them
+    (:func:`~sparselt.storage.zarr_store.changed_chunks`: size or
+    modification time, or missing) are read and checked against their CRC-32,
+    every chunk with ``verify`` or when the store recorded no signatures.
+    """
+    grid = _complete_grid(meta)
+    if grid is None:
+        return None
     try:
         checksums = zarr_store.recorded_checksums(path, meta, grid.count)
     except zarr_store.CorruptSignalError:
         return list(range(grid.count))
-    return zarr_store.damaged_chunks(path, grid, checksums)
+    signatures = zarr_store.chunk_signatures(path, grid)
+    candidates = None if verify else zarr_store.changed_chunks(meta.get("chunk_files"), signatures)
+    return zarr_store.damaged_chunks(path, grid, checksums, candidates)
+
+
+def _settle_complete_store(path, config, identity, verify):
+    """The loaded signal of a complete store of this configuration and scene with no damaged chunk (as
+    :func:`_inspect_store` found it); ``None`` when it is not complete after all (it changed meanwhile: the caller
+    samples as usual).
+
+    Where chunk files changed but still match their CRC-32 (a store completed
+    before signatures were recorded, or copied), their signatures are
+    recorded anew under the store's lock, so the next rerun reads nothing; a
+    store that cannot take the lock (read-only, a full disk) is used as it is.
+    """
+    meta = zarr_store.read_attributes(path)
+    if meta.get("chunk_files") == zarr_store.chunk_signatures(path, _complete_grid(meta)):
+        return load_signal(path)  # nothing to record: no lock, nothing written
+    lock = StoreLock(path)
+    try:
+        lock.acquire()
+    except (OSError, zarr_store.DiskFullError) as error:
+        if isinstance(error, OSError) and error.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
+            raise
+        return load_signal(path)  # verified, but its signatures cannot be recorded here
+    try:
+        if _inspect_store(path, config, identity, overwrite=False, verify=verify) != "complete":
+            return None
+        meta = zarr_store.read_attributes(path)
+        meta["chunk_files"] = zarr_store.chunk_signatures(path, _complete_grid(meta))
+        zarr_store.write_attributes(path, meta)
+    finally:
+        lock.release()
+    return load_signal(path)
+
+
+def complete_signal(config, path, *, verify=False):
+    """The signal at ``path`` if it is complete for ``config``: nothing to sample; else ``None``.
+
+    Complete means: the store is marked complete, was sampled with this
+    configuration (the NaN policy aside) from this scene, and none of its
+    chunks is missing or damaged. Only the chunks whose files changed since
+    they were written are read to tell (every chunk with ``verify``), so a
+    rerun of a finished ``sparselt sample`` is immediate.
+
+    Parameters
+    ----------
+    config : AcquisitionConfig
+    path : str
+        The signal store.
+    verify : bool, optional
+        Read every chunk and check it against its CRC-32 (damage the files'
+        size and time do not show: a failing disk).
+
+    Returns
+    -------
+    Signal or None
+        ``None`` when there is something to do (no store, an unfinished or
+        damaged one): :func:`acquire_signal` does it.
+
+    Raises
+    ------
+    ValueError
+        A complete store of another configuration or scene, or a folder
+        that is not a signal store (as :func:`acquire_signal`).
+    StoreLockedError
+        Another run is writing the store.
+    """
+    validate_config(config)
+    path = os.path.abspath(os.fspath(path))
+    if zarr_store.store_status(path) != "complete" or is_link_loop(path):
+        return None
+    identity = config.setup().scene_identity
+    check_unlocked(path)
+    if _inspect_store(path, config, identity, overwrite=False, verify=verify) != "complete":
+        return None
+    return _settle_complete_store(path, config, identity, verify)
 
 
 def _same_signal(recorded, requested):

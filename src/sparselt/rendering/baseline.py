@@ -31,6 +31,7 @@ from ..checks import check_integer, check_positive_finite
 from ..digest import bytes_digest, digest, file_digest
 from ..measurement import progress_bar
 from ..provenance import atomic_write_bytes, environment_record, read_json, write_json
+from ..storage.cache import cache_directory, cache_errors, usable_cache_directory
 from .identity import scene_identity
 from .reference_passes import PassJob, read_pass, render_passes, write_pass
 
@@ -38,13 +39,40 @@ MAXIMUM_WAVEFRONT = 2**32 - 1
 
 
 def check_wavefront(resolution, spp):
-    """Mitsuba renders pixels x spp samples in one wavefront, counted in 32 bits: refuse more, with the limit."""
-    samples = int(resolution[0]) * int(resolution[1]) * int(spp)
-    if samples > MAXIMUM_WAVEFRONT:
-        largest = MAXIMUM_WAVEFRONT // (int(resolution[0]) * int(resolution[1]))
-        raise ValueError(f"{resolution[0]}x{resolution[1]} pixels at {spp} spp are {samples:.3g} samples in one pass; "
-                         f"Mitsuba counts them in 32 bits: at most {largest} spp at this resolution "
-                         "(render several passes with different seeds and average them)")
+    """Mitsuba renders pixels x spp samples in one wavefront, counted in 32 bits: refuse more, naming the largest
+    resolution of the same shape that fits at ``spp`` (and the largest spp that fits at ``resolution``, if any)."""
+    width, height, spp = int(resolution[0]), int(resolution[1]), int(spp)
+    samples = width * height * spp
+    if samples <= MAXIMUM_WAVEFRONT:
+        return
+    if spp > MAXIMUM_WAVEFRONT:
+        raise ValueError(f"{spp} spp are more samples than Mitsuba counts in one pass even for one pixel (at most "
+                         f"{MAXIMUM_WAVEFRONT}, in 32 bits): render several passes with different seeds and average "
+                         "them")
+    fitting_width, fitting_height = largest_resolution(width, height, spp)
+    largest_spp = MAXIMUM_WAVEFRONT // (width * height)
+    message = (f"{width}x{height} pixels at {spp} spp are {samples:.3g} samples in one pass; Mitsuba counts them in "
+               f"32 bits (at most {MAXIMUM_WAVEFRONT}): the largest resolution of this shape that fits in one pass at "
+               f"{spp} spp is {fitting_width}x{fitting_height}")
+    if largest_spp >= 1:
+        message += (f", and at {width}x{height} at most {largest_spp} spp fit (render several passes with different "
+                    "seeds and average them for more)")
+    raise ValueError(message)
+
+
+def largest_resolution(width, height, spp):
+    """The largest ``(width', height')`` of the aspect ratio of ``width x height`` whose ``width' * height' * spp``
+    samples fit in one pass (:data:`MAXIMUM_WAVEFRONT`); at least 1x1."""
+    scale = math.sqrt(MAXIMUM_WAVEFRONT / (width * height * spp))
+    fitting_width, fitting_height = max(1, int(width * scale)), max(1, int(height * scale))
+    while fitting_width * fitting_height * spp > MAXIMUM_WAVEFRONT:
+        if fitting_width > 1 and (fitting_height == 1 or fitting_width * height >= fitting_height * width):
+            fitting_width -= 1
+        elif fitting_height > 1:
+            fitting_height -= 1
+        else:
+            break
+    return fitting_width, fitting_height
 
 
 def check_finite_image(image, name):
@@ -81,9 +109,8 @@ def reference_pass_seed(seed, index):
 
 
 def reference_cache_directory():
-    """``$SPARSELT_CACHE/references`` (default ``~/.cache/sparselt/references``)."""
-    root = os.environ.get("SPARSELT_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "sparselt")
-    return os.path.join(root, "references")
+    """``$SPARSELT_CACHE/references`` (default ``~/.cache/sparselt/references``; :mod:`sparselt.storage.cache`)."""
+    return cache_directory("references")
 
 
 def reference_quantity(kind, max_depth):
@@ -247,7 +274,7 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
     key = reference_key(loaded, kind, max_depth=max_depth, seed=seed)
     if setup is not None:
         _check_cluster_setup(setup, loaded, key)
-    folder = os.path.join(cache_directory or reference_cache_directory(), digest(key))
+    folder = os.path.join(usable_cache_directory(cache_directory or reference_cache_directory()), digest(key))
     shape = (loaded.height, loaded.width, 3)
     requested = -(-spp // REFERENCE_PASS_SPP)
     minimum = min(2, requested)
@@ -283,8 +310,9 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
         if not np.all(np.isfinite(image)):
             raise ValueError(f"the reference render of {loaded.spec.name!r} has NaN or infinite pixels in pass "
                              f"{index} (seed {seeds[index]}); check the scene. Finished passes are kept")
-        records[index] = write_pass(folder, index, image, seed=seeds[index], spp=REFERENCE_PASS_SPP,
-                                    seconds=seconds, machine=machine)
+        with cache_errors(folder, "write"):
+            records[index] = write_pass(folder, index, image, seed=seeds[index], spp=REFERENCE_PASS_SPP,
+                                        seconds=seconds, machine=machine)
         rendered.append(index)
         if bar is not None:
             bar.update(REFERENCE_PASS_SPP)
@@ -331,7 +359,9 @@ def cached_reference(loaded, kind, *, spp, max_depth=3, seed=0, progress=True, c
         "machines": sorted({entry["machine"] for entry in used_records}),
         "relmse_floor": None if math.isnan(floor) else floor,
     }
-    path = _write_outputs(folder, image, variance, dict(record, pass_sha256=[entry["sha256"] for entry in used_records]))
+    with cache_errors(folder, "write"):
+        path = _write_outputs(folder, image, variance,
+                              dict(record, pass_sha256=[entry["sha256"] for entry in used_records]))
     return image, dict(record, variance=variance, cached=not rendered, folder=folder, path=path)
 
 

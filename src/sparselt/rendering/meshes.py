@@ -954,9 +954,11 @@ def write_ply(path, mesh, normals=True):
 
 
 def cache_directory():
-    """Directory of cached meshes: ``$SPARSELT_CACHE/meshes`` (default ``~/.cache/sparselt/meshes``)."""
-    root = os.environ.get("SPARSELT_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "sparselt")
-    return os.path.join(root, "meshes")
+    """Directory of cached meshes: ``$SPARSELT_CACHE/meshes`` (default ``~/.cache/sparselt/meshes``;
+    :mod:`sparselt.storage.cache`)."""
+    from ..storage.cache import cache_directory as cache_subfolder
+
+    return cache_subfolder("meshes")
 
 
 def _canonical(value):
@@ -1004,5 +1006,9 @@ def mesh_file(name, builder, normals=True, **parameters):
     key = dict(parameters, _builder=f"{builder.__module__}.{builder.__qualname__}", _normals=bool(normals))
     path = os.path.join(cache_directory(), f"{name}-{parameter_hash(name, key)}.ply")
     if not os.path.isfile(path):
-        write_ply(path, builder(**parameters), normals)
+        from ..storage.cache import cache_errors
+
+        mesh = builder(**parameters)
+        with cache_errors(os.path.dirname(path), "write"):
+            write_ply(path, mesh, normals)
     return os.path.abspath(path)

@@ -12,7 +12,7 @@ One abstraction for the output folder of ``compare``, ``table61``, ``analyze``,
      "files": [...],                    # every file sparselt wrote here (relative paths)
      "history": [...]}                  # every command that contributed: versions, git, times
 
-and keeps four promises:
+and keeps five promises:
 
 - **Identity.** A rerun with the same identity resumes; one with another
   identity is refused, naming what differs, unless ``overwrite``. Stating a
@@ -29,6 +29,12 @@ and keeps four promises:
   and is listed in the manifest *before* it is created, so a run killed at
   any point leaves nothing that looks like a foreign file, and nothing
   half-written under a final name.
+- **Nothing left by a failure.** A run that fails in a folder it created,
+  before any cell was recorded, removes what it wrote there (its lock
+  included) and the folders it created; a failure in an existing folder
+  leaves its finished work and no lock. A full disk names the path being
+  written (:class:`~sparselt.storage.errors.DiskFullError`), the lock's
+  own record included.
 
 Resumable cells are JSON records under ``cells/``: a cell is done when its
 record exists (its folder's identity was checked when the folder opened).
@@ -37,7 +43,6 @@ record exists (its folder's identity was checked when the folder opened).
 from __future__ import annotations
 
 import contextlib
-import errno
 import io
 import json
 import os
@@ -45,7 +50,8 @@ from datetime import datetime, timezone
 
 from ..digest import bytes_digest, canonical
 from ..provenance import atomic_write, atomic_write_bytes, environment_record, read_json
-from .lock import LOCK_FILE, StoreLock, check_unlocked
+from .errors import no_space_is_clear, output_path_problem
+from .lock import LOCK_FILE, LOCK_REMEDY, StoreLock, check_unlocked
 
 MANIFEST_FILE = "sparselt-folder.json"
 FORMAT = "sparselt-experiment-folder"
@@ -153,6 +159,8 @@ class ExperimentFolder:
         self._lock = None
         self._locking = False
         self._files = set()
+        #: Cells and repeats recorded by this run (:meth:`record_cell`, :meth:`record_repeat`).
+        self.recorded = 0
 
     # ----------------------------------------------------------------- inspection (changes nothing)
     @property
@@ -169,19 +177,10 @@ class ExperimentFolder:
         Nothing is written or removed.
         """
         path = self.path
-        try:
-            os.stat(path)
-            exists = True
-        except FileNotFoundError:
-            exists = False
-        except OSError as error:
-            if error.errno == errno.ELOOP:
-                raise FolderError(f"output path {path!r} is a symbolic link loop; choose another --out") from None
-            raise
-        if os.path.lexists(path) and not exists:
-            raise FolderError(f"output path {path!r} is a broken symbolic link; choose another --out")
-        if exists and not os.path.isdir(path):
-            raise FolderError(f"output path {path!r} is an existing file, not a folder; choose another --out")
+        problem = output_path_problem(path)  # a link loop, a broken link, a file, a file in the way
+        if problem:
+            raise FolderError(f"output path {path!r} {problem}")
+        exists = os.path.isdir(path)
         if not exists:
             self._check_creatable()
             self.plan = "new"
@@ -235,8 +234,6 @@ class ExperimentFolder:
         probe = os.path.dirname(self.path)
         while not os.path.exists(probe):
             probe = os.path.dirname(probe)
-        if not os.path.isdir(probe):
-            raise FolderError(f"output folder {self.path!r} cannot be created: {probe!r} is a file, not a folder")
         if not os.access(probe, os.W_OK | os.X_OK):
             raise PermissionError(f"output folder {self.path!r} cannot be created (no write permission on {probe!r})")
 
@@ -296,12 +293,26 @@ class ExperimentFolder:
     # ----------------------------------------------------------------- the run
     @contextlib.contextmanager
     def open(self):
-        """Take the folder: lock, replace if planned, record this command; release the lock on exit."""
+        """Take the folder: lock, replace if planned, record this command; release the lock on exit.
+
+        A run that fails (an exception, not an interruption) in a folder this
+        call created, before any cell or sub-folder was recorded, leaves
+        nothing behind: the files it listed, its manifest, its lock and the
+        folders it created are removed (nothing else is ever there, and
+        nothing a rerun could resume is lost).
+        """
         if self.plan is None:
             self.inspect()
-        os.makedirs(self.path, exist_ok=True)
+        created = missing_folders(self.path)
+        with no_space_is_clear(self.path, "creating the output folder", LOCK_REMEDY):
+            os.makedirs(self.path, exist_ok=True)
         lock = StoreLock(self.path, what=f"{self.kind} folder")
-        lock.acquire()
+        try:
+            lock.acquire()
+        except BaseException:
+            remove_empty_folders(created)
+            raise
+        failed = False
         try:
             self._locking = True
             self.inspect()  # again, now that the folder is ours
@@ -323,10 +334,27 @@ class ExperimentFolder:
             self._write_manifest()
             self._lock = lock
             yield self
+        except Exception:
+            failed = True
+            raise
         finally:
             self._lock = None
             self._locking = False
             lock.release()
+            if failed and created:
+                self._discard_unfinished(created)
+
+    def _discard_unfinished(self, created):
+        """After a failed run in folders this run created (``created``, deepest first): remove what it wrote,
+        unless a cell, a repeat or a sub-folder was recorded (work a rerun resumes)."""
+        if any(name.endswith("/") or name.startswith((f"{CELLS}/", f"{REPEATS}/")) for name in self._files):
+            return
+        with contextlib.suppress(OSError):
+            _remove_listed_files(self.path, sorted(self._files))
+            manifest_path = os.path.join(self.path, MANIFEST_FILE)
+            if os.path.isfile(manifest_path):
+                os.remove(manifest_path)
+        remove_empty_folders(created)
 
     def _remove_listed(self, manifest):
         """Remove the files a manifest lists (never anything else), then the folders they leave empty."""
@@ -449,6 +477,7 @@ class ExperimentFolder:
 
     def record_cell(self, name, record):
         """Record a finished cell (after its artefacts are written)."""
+        self.recorded += 1
         return self.write_json(f"{CELLS}/{name}.json", record)
 
     def repeats(self, name):
@@ -472,6 +501,7 @@ class ExperimentFolder:
 
     def record_repeat(self, name, record):
         """Record the repeats of cell ``name`` so far (see :meth:`repeats`)."""
+        self.recorded += 1
         return self.write_json(f"{REPEATS}/{name}.json", record)
 
     def complete(self, **summary):
@@ -539,8 +569,30 @@ def _remove_owned_folder(path):
         os.rmdir(path)
 
 
+def missing_folders(path):
+    """The folders ``os.makedirs(path)`` would create, deepest first."""
+    missing = []
+    while not os.path.lexists(path):
+        missing.append(path)
+        parent = os.path.dirname(path)
+        if parent == path:
+            break
+        path = parent
+    return missing
+
+
+def remove_empty_folders(folders):
+    """Remove ``folders`` (deepest first) while they are empty; stop at the first that is not."""
+    for folder in folders:
+        try:
+            os.rmdir(folder)
+        except OSError:
+            return
+
+
 def _listing(names):
     return ", ".join(repr(name) for name in names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
 
 
-__all__ = ["ExperimentFolder", "FolderError", "MANIFEST_FILE", "identity_differences", "signal_identity"]
+__all__ = ["ExperimentFolder", "FolderError", "MANIFEST_FILE", "identity_differences", "missing_folders",
+           "remove_empty_folders", "signal_identity"]

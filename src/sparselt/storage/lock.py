@@ -8,10 +8,15 @@ holds the store. On release the file is removed while still locked; a
 process that opened it just before checks, after locking, that the path still
 names the file it locked (the classic inode check), so two runs can never both
 believe they hold the store.
+
+A lock that cannot be taken leaves nothing behind: a lock file this process
+could not fill in (a full disk) is removed, and the failure names the folder
+(:class:`~sparselt.storage.errors.DiskFullError`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import json
@@ -20,7 +25,11 @@ import socket
 import sys
 from datetime import datetime, timezone
 
+from .errors import no_space_is_clear
+
 LOCK_FILE = ".sparselt.lock"
+#: What to do when a full disk leaves no room for the lock's record.
+LOCK_REMEDY = "nothing was changed there: free some space, or choose another --out on a disk with room"
 
 
 class StoreLockedError(RuntimeError):
@@ -108,7 +117,19 @@ class StoreLock:
         self.previous_holder = None
 
     def acquire(self):
-        """Take the lock or raise :class:`StoreLockedError` naming its holder."""
+        """Take the lock or raise :class:`StoreLockedError` naming its holder.
+
+        Raises
+        ------
+        StoreLockedError
+            A live process holds the lock.
+        DiskFullError
+            No room for the holder's record; the lock file is removed again.
+        """
+        with no_space_is_clear(self.folder, f"taking its lock ({LOCK_FILE!r})", LOCK_REMEDY):
+            return self._acquire()
+
+    def _acquire(self):
         for _ in range(100):
             descriptor = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
@@ -131,10 +152,16 @@ class StoreLock:
                 # flock is free, so its holder is gone; say so when we can tell.
                 if previous.get("host") == socket.gethostname() and not _process_alive(previous.get("pid", -1)):
                     self.previous_holder = previous
-            os.ftruncate(descriptor, 0)
-            os.lseek(descriptor, 0, os.SEEK_SET)
-            os.write(descriptor, (json.dumps(_holder_record()) + "\n").encode())
-            os.fsync(descriptor)
+            try:
+                os.ftruncate(descriptor, 0)
+                os.lseek(descriptor, 0, os.SEEK_SET)
+                os.write(descriptor, (json.dumps(_holder_record()) + "\n").encode())
+                os.fsync(descriptor)
+            except BaseException:
+                with contextlib.suppress(OSError):  # we hold it: an empty lock file must not stay behind
+                    os.unlink(self.path)
+                os.close(descriptor)
+                raise
             self._descriptor = descriptor
             return self
         raise StoreLockedError(f"could not lock {self.path!r}: it keeps being replaced by another process")

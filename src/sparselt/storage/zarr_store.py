@@ -18,7 +18,11 @@ every read through :class:`VerifiedArray` (what
 :func:`sparselt.signal.load_signal` returns as ``Signal.data``) checks the
 chunks it touches against them: damage raises :class:`CorruptSignalError`,
 and rerunning the ``sparselt sample`` command that wrote the store samples
-just the damaged chunks again.
+just the damaged chunks again. A complete store also records the size and
+modification time of every chunk file (``chunk_files``,
+:func:`chunk_signatures`), so a rerun reads only the chunks whose files
+changed to decide whether the store is complete and intact (with
+``--verify``, every chunk).
 
 A store is replaced (``sample --overwrite``) by writing the new one beside it,
 in the hidden sibling ``.S.sparselt-new`` (:func:`sibling_path`), and
@@ -53,6 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..provenance import read_json
+from .errors import NO_SPACE_ERRORS, DiskFullError, no_space_is_clear  # noqa: F401  (also imported from here)
 from .lock import LOCK_FILE
 
 FORMAT = "sparselt-signal"
@@ -62,17 +67,13 @@ GROUP_FILE = "zarr.json"
 JOURNAL_FILE = "chunks.jsonl"
 LEGACY_FILES = ("meta.json", "data.npy", "data.partial.npy", "progress.json")
 COMPRESSION_LEVEL = 3
-NO_SPACE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
-#: What to do about a damaged store: the ``sample`` command that wrote it samples just the damaged chunks again.
-REPAIR_REMEDY = "rerun the same `sparselt sample` command to repair it"
+#: What to do about a damaged store: the ``sample`` command that wrote it samples just the damaged chunks again
+#: (``--verify`` reads every chunk: damage that changed neither a file's size nor its time is found too).
+REPAIR_REMEDY = "rerun the same `sparselt sample` command with --verify to repair it"
 #: Roles of a store's hidden siblings: the replacement being written, and the old store during a fallback swap.
 SIBLING_ROLES = ("new", "old")
-
-
-class DiskFullError(RuntimeError):
-    """The device holding the store ran out of space; the run resumes once space is freed."""
 
 
 class CorruptSignalError(ValueError):
@@ -490,14 +491,15 @@ class VerifiedArray:
         return values
 
 
-def damaged_chunks(path, grid, checksums):
+def damaged_chunks(path, grid, checksums, indices=None):
     """Indices of the chunks of a store that are missing, cannot be decoded or do not match ``checksums``.
 
-    Chunks this process already verified (and whose files did not change since) are not read again.
+    Only ``indices`` are checked (default: every chunk). Chunks this process
+    already verified (and whose files did not change since) are not read again.
     """
     reader = VerifiedArray(path, grid, checksums)
     damaged = []
-    for index in range(grid.count):
+    for index in (range(grid.count) if indices is None else indices):
         try:
             reader.verify(index)
         except CorruptSignalError:
@@ -654,6 +656,34 @@ def read_chunk(path, grid, index):
         return None
 
 
+def chunk_signatures(path, grid):
+    """``[size, mtime_ns]`` of every chunk file (``None`` for a missing one), in chunk order.
+
+    A complete store records them (``chunk_files``) when its last chunk is
+    in, so a rerun of the command that wrote it can tell, from the files'
+    metadata alone, which chunks were written since (and only those are read
+    and checked against their CRC-32: :func:`changed_chunks`).
+    """
+    folder = os.path.join(os.fspath(path), ARRAY_NAME)
+    signatures = []
+    for index in range(grid.count):
+        try:
+            status = os.stat(os.path.join(folder, grid.chunk_key(index)))
+        except FileNotFoundError:
+            signatures.append(None)
+            continue
+        signatures.append([status.st_size, status.st_mtime_ns])
+    return signatures
+
+
+def changed_chunks(recorded, signatures):
+    """Indices whose current signature (:func:`chunk_signatures`) differs from the ``recorded`` one; every index
+    when nothing usable was recorded (a store completed before signatures were recorded)."""
+    if not isinstance(recorded, list) or len(recorded) != len(signatures):
+        return list(range(len(signatures)))
+    return [index for index, (before, now) in enumerate(zip(recorded, signatures)) if now is None or before != now]
+
+
 def missing_chunks(path, grid):
     """Indices of chunks whose file is absent (a complete store has none)."""
     folder = os.path.join(os.fspath(path), ARRAY_NAME)
@@ -719,34 +749,6 @@ class ChunkJournal:
     def remove(self):
         if os.path.isfile(self.path):
             os.remove(self.path)
-
-
-class no_space_is_clear:
-    """Context manager: a full disk (ENOSPC, EDQUOT, EFBIG) becomes a :class:`DiskFullError` naming the store."""
-
-    def __init__(self, path, action, remedy="finished chunks are kept: free some space and rerun the same command to resume"):
-        self.path, self.action, self.remedy = os.fspath(path), action, remedy
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, kind, error, traceback):
-        if error is None:
-            return False
-        cause = error
-        while cause is not None and not (isinstance(cause, OSError) and cause.errno in NO_SPACE_ERRORS):
-            cause = cause.__cause__ or cause.__context__
-        if cause is None:
-            return False
-        try:
-            free = shutil.disk_usage(self.path if os.path.exists(self.path) else os.path.dirname(self.path)).free
-            free_text = f"{free} bytes free"
-        except OSError:
-            free_text = "free space unknown"
-        raise DiskFullError(
-            f"no space left on the device holding {self.path!r} while {self.action} ({os.strerror(cause.errno)}, "
-            f"{free_text}); {self.remedy}"
-        ) from None
 
 
 def _fsync_file(path):
