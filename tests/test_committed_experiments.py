@@ -221,7 +221,10 @@ def test_summary_and_equal_time_columns_reproduce(folder):
                      if not same_number(want.get(key, ""), row.get(key, ""))}
         assert not different, f"{row['method']} {row['spp']} spp seed {row['seed']}: {different}"
     pt_fit = json.loads((folder / "compare.json").read_text())["pt_fit"]
-    assert same_number(pt_fit["intercept_seconds"], fit.intercept)
+    # The intercept is a difference of times: its rounding error scales with the ladder's shortest time, not with
+    # itself (sunlit-room's is -0.26 ms beside a 0.2 s rung).
+    assert math.isclose(pt_fit["intercept_seconds"], fit.intercept, rel_tol=RELATIVE,
+                        abs_tol=RELATIVE * fit.slope * fit.spp_range[0])
     assert same_number(pt_fit["seconds_per_spp"], fit.slope)
     assert same_number(pt_fit["time_relative_residual"], fit.time_residual)
     assert list(pt_fit["spp_range"]) == list(fit.spp_range)
