@@ -17,7 +17,7 @@ scenes themselves are in :mod:`sparselt.rendering.procedural`,
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .suite_config import SuiteConfig, SuiteScene, validate_suite
 
@@ -118,8 +118,6 @@ def standard_suite(scale="default", *, methods=None, scenes=None):
         if unknown:
             raise ValueError(f"the standard suite has no scene {unknown[0]!r}; its scenes: {', '.join(known)}")
         every = [scene for scene in every if scene.name in scenes]
-    from dataclasses import replace
-
     members = []
     for scene in every:
         applicable = applicable_methods(rows, scene.kind)

@@ -36,8 +36,9 @@ import sys
 import time
 
 from ..provenance import environment_record
-from .compare import compare, validate_config
+from .compare import compare
 from .protocol import Experiment, Unfinished, run_experiment
+from .suite_config import validate_suite
 
 SUITE_KIND = "suite"
 SUITE_FILE = "suite.json"
@@ -121,8 +122,7 @@ class SuiteExperiment(Experiment):
         return {"digest": hashlib.sha256(text.encode()).hexdigest(), "files": files, "scenes": identities}
 
     def validate(self):
-        for name, comparison in self.comparisons.items():
-            self.setups[name] = validate_config(comparison)
+        self.setups = validate_suite(self.config)
 
     def plan(self):
         return [scene.name for scene in self.config.scenes]

@@ -422,6 +422,11 @@ def validate_suite(config, *, lines=None):
     lines : _Lines, optional
         The suite file's positions (errors then name its line and key).
 
+    Returns
+    -------
+    dict
+        ``{scene name: SceneSetup}``: every scene's resolved setup.
+
     Raises
     ------
     SuiteError
@@ -443,10 +448,11 @@ def validate_suite(config, *, lines=None):
             raise error(f"scene name {scene.name!r} is used twice (scenes #{seen[scene.name] + 1} and "
                         f"#{index + 1}); each scene's folder is scenes/NAME", index, "name")
         seen[scene.name] = index
+    setups = {}
     for index, scene in enumerate(config.scenes):
         comparison = config.comparison(scene)
         try:
-            validate_config(comparison, with_methods=True)
+            setups[scene.name], _ = validate_config(comparison, with_methods=True)
         except (ValueError, TypeError) as problem:
             message = str(problem)
             rows = comparison.methods
@@ -454,9 +460,11 @@ def validate_suite(config, *, lines=None):
             if key == "methods" and scene.methods is None and lines is not None:
                 raise lines.error(f"scene {scene.name!r} (kind {scene.kind}): {message}", "suite", None,
                                   "methods") from None
-            for candidate in () if key == "methods" else ("shape", "resolution", "aperture", "focus_distance", "max_depth", "kind", "parameters"):
+            candidates = ("shape", "resolution", "aperture", "focus_distance", "max_depth", "kind", "parameters")
+            for candidate in () if key == "methods" else candidates:
                 if candidate.replace("_", " ") in message.lower() and (
                         getattr(scene, candidate, None) not in (None, ())):
                     key = candidate
                     break
             raise error(message, index, key) from None
+    return setups

@@ -14,16 +14,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..analysis.metrics import pixel_relative_squared_error
 from ..images import reference_exposure
 from ..provenance import environment_record
-from ..report.comparison_figures import ERROR_COLOUR_MAP, shared_error_scale
+from ..report.comparison_figures import ERROR_COLOUR_MAP, error_maps, shared_error_scale
 from ..report.comparison_rows import matched_rows
 from ..report.page import Figure, Section, page_html
 from ..report.plotting import pyplot
 from ..report.table import Table
 from ..report.viewer import viewer_assets, viewer_html
 from .equal_time import SUMMARY_COLUMNS
+from .quality import RELMSE_EPSILON
 from .suite_aggregate import (
     AGGREGATE_COLUMNS,
     BOOTSTRAP_SEED,
@@ -34,7 +34,6 @@ from .suite_aggregate import (
 )
 
 SUITE_COLUMNS = ("scene", "kind", "machine") + SUMMARY_COLUMNS
-RELMSE_EPSILON = 0.01
 VIEWER = "viewer"
 
 
@@ -165,7 +164,8 @@ def write_viewer_images(folder, name, scene_folder, rows):
     matched, target = matched_rows(rows)
     images = [np.load(f"{scene_folder}/{IMAGES}/{cell_name(row['method'], row['spp'], row['seed'])}.npy")
               for row in matched]
-    errors = [pixel_relative_squared_error(image, reference, epsilon=RELMSE_EPSILON) for image in images]
+    loaded = dict(zip(map(id, matched), images))
+    errors = error_maps(matched, reference, lambda row: loaded[id(row)], epsilon=RELMSE_EPSILON)
     low, high = shared_error_scale(errors)
     base = f"{VIEWER}/{name}"
     folder.write_png(f"{base}/reference.png", reference, exposure=exposure)
