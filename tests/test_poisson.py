@@ -116,3 +116,62 @@ def test_l1_iterations_do_not_depend_on_the_image_scale():
     np.testing.assert_allclose(scaled.estimate, 1000.0 * one.estimate, rtol=1e-8, atol=1e-8)
     with pytest.raises(ValueError, match="start must be 'primal' or 'l2'"):
         screened_poisson_l1(noisy, *gradients, start="zero")
+
+
+def _admm_in_numpy(primal, gradient_x, gradient_y, alpha, penalty, tolerance, max_iterations):
+    """The L1 solve's ADMM as plain NumPy expressions, one array per part: what the fused kernels must compute."""
+    from scipy.fft import dctn, idctn
+
+    height, width = primal.shape[:2]
+    ky = 4.0 * np.sin(np.pi * np.arange(height) / (2.0 * height)) ** 2
+    kx = 4.0 * np.sin(np.pi * np.arange(width) / (2.0 * width)) ** 2
+    eigenvalues = (ky[:, None] + kx[None, :])[..., None]
+    targets = (alpha * primal, gradient_x, gradient_y)
+    size = sum(part.size for part in targets)
+    rho = penalty * size / sum(float(np.sum(np.abs(part))) for part in targets)
+
+    def soft(value):
+        return np.sign(value) * np.maximum(np.abs(value) - 1.0 / rho, 0.0)
+
+    def apply(image):
+        return (alpha * image,) + forward_differences(image)
+
+    image = primal.copy()
+    residual = [h - b for h, b in zip(apply(image), targets)]
+    z = [soft(r) for r in residual]
+    u = [r - zz for r, zz in zip(residual, z)]
+    history = []
+    for _ in range(max_iterations):
+        shifted = [b + zz - uu for b, zz, uu in zip(targets, z, u)]
+        right = alpha * shifted[0] + difference_adjoint(shifted[1], shifted[2])
+        previous = image
+        spectrum = dctn(right, type=2, norm="ortho", axes=(0, 1))
+        spectrum /= alpha * alpha + eigenvalues
+        image = idctn(spectrum, type=2, norm="ortho", axes=(0, 1))
+        fitted = apply(image)
+        z = [soft(h - b + uu) for h, b, uu in zip(fitted, targets, u)]
+        u = [uu + h - b - zz for uu, h, b, zz in zip(u, fitted, targets, z)]
+        history.append(np.linalg.norm(image - previous) / np.linalg.norm(image))
+        if history[-1] < tolerance:
+            break
+    return image, history
+
+
+@pytest.mark.parametrize("shape", [(23, 31, 3), (300, 260, 3)])
+def test_the_fused_admm_computes_the_numpy_iterations(shape):
+    """The L1 solve's fused kernels (kernels.admm_*) against the NumPy expressions: the same image, bit for bit.
+
+    The larger shape runs the kernels in parallel; the stop rule's norms agree to rounding.
+    """
+    image = _image(5, shape)
+    rng = np.random.default_rng(6)
+    gradient_x, gradient_y = forward_differences(image)
+    gradient_x = gradient_x + rng.standard_normal(gradient_x.shape) * 0.05
+    gradient_y = gradient_y + rng.standard_normal(gradient_y.shape) * 0.05
+    gradient_x[3, 4] += 5.0  # an outlier the soft threshold must keep out
+    primal = image + rng.standard_normal(image.shape) * 0.1
+    expected, history = _admm_in_numpy(primal, gradient_x, gradient_y, 0.2, 1.0, 1e-3, 12)
+    result = screened_poisson_l1(primal, gradient_x, gradient_y, alpha=0.2, tolerance=1e-3, max_iterations=12)
+    assert result.iterations == len(history)
+    np.testing.assert_array_equal(result.estimate, expected)
+    np.testing.assert_allclose(result.residual_history, history, rtol=1e-12)

@@ -97,7 +97,7 @@ def test_render_path_and_every_estimator_take_seeds_past_two_to_the_32(scene):
     assert buffers["albedo"].shape == (HEIGHT, WIDTH, 3)
     means, _ = scene.sample_cells(layout, grid, 0, 16, 2, seed)
     assert means.tobytes() == scene.sample_cells(layout, grid, 0, 16, 2, fold_seed(seed))[0].tobytes()
-    sums, _, _ = scene.sample_gradients(layout, grid, 1, seed, offsets=2)
+    sums = scene.sample_gradients(layout, grid, 1, seed, offsets=2).sums
     assert sums.shape == (HEIGHT, WIDTH, 3, 3)
     statistics, _ = scene.sample_pixel_statistics(layout, grid, seed, ("rgb", "nearest"), spp=1)
     assert statistics["rgb"].shape == (WIDTH * HEIGHT, 3)

@@ -148,7 +148,67 @@ def _compiled():
                 out[target, 1] += second[lane]
                 out[target, 2] += third[lane]
 
-        _KERNELS = {"gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
+        @numba.njit(inline="always")
+        def soft(value, threshold):
+            sign = 1.0 if value > 0 else (-1.0 if value < 0 else 0.0)
+            magnitude = abs(value) - threshold
+            return sign * max(0.0, magnitude)
+
+        @numba.njit(parallel=True, cache=True)
+        def admm_right_hand_side(targets, z, u, alpha, out):
+            b0, b1, b2 = targets
+            z0, z1, z2 = z
+            u0, u1, u2 = u
+            height, width, channels = out.shape
+            for y in numba.prange(height):
+                for x in range(width):
+                    for c in range(channels):
+                        value = 0.0
+                        if x < width - 1:
+                            value = value - ((b1[y, x, c] + z1[y, x, c]) - u1[y, x, c])
+                        if x >= 1:
+                            value = value + ((b1[y, x - 1, c] + z1[y, x - 1, c]) - u1[y, x - 1, c])
+                        if y < height - 1:
+                            value = value - ((b2[y, x, c] + z2[y, x, c]) - u2[y, x, c])
+                        if y >= 1:
+                            value = value + ((b2[y - 1, x, c] + z2[y - 1, x, c]) - u2[y - 1, x, c])
+                        out[y, x, c] = alpha * ((b0[y, x, c] + z0[y, x, c]) - u0[y, x, c]) + value
+
+        @numba.njit(parallel=True, cache=True)
+        def admm_update(image, previous, targets, z, u, alpha, threshold):
+            b0, b1, b2 = targets
+            z0, z1, z2 = z
+            u0, u1, u2 = u
+            height, width, channels = image.shape
+            change = 0.0
+            norm = 0.0
+            for y in numba.prange(height):
+                for x in range(width):
+                    for c in range(channels):
+                        value = image[y, x, c]
+                        step = value - previous[y, x, c]
+                        change += step * step
+                        norm += value * value
+                        fitted = alpha * value
+                        residual = (fitted - b0[y, x, c]) + u0[y, x, c]
+                        shrunk = soft(residual, threshold)
+                        z0[y, x, c] = shrunk
+                        u0[y, x, c] = ((u0[y, x, c] + fitted) - b0[y, x, c]) - shrunk
+                        if x < width - 1:
+                            fitted = image[y, x + 1, c] - value
+                            residual = (fitted - b1[y, x, c]) + u1[y, x, c]
+                            shrunk = soft(residual, threshold)
+                            z1[y, x, c] = shrunk
+                            u1[y, x, c] = ((u1[y, x, c] + fitted) - b1[y, x, c]) - shrunk
+                        if y < height - 1:
+                            fitted = image[y + 1, x, c] - value
+                            residual = (fitted - b2[y, x, c]) + u2[y, x, c]
+                            shrunk = soft(residual, threshold)
+                            z2[y, x, c] = shrunk
+                            u2[y, x, c] = ((u2[y, x, c] + fitted) - b2[y, x, c]) - shrunk
+            return change, norm
+
+        _KERNELS = {"admm_right_hand_side": admm_right_hand_side, "admm_update": admm_update, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked,
                     "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
                     "block_sums": block_sums, "counting_order": counting_order, "ordered_sums": ordered_sums}
@@ -343,6 +403,35 @@ def clamped_power(values, exponent):
     return values
 
 
+def admm_right_hand_side(targets, z, u, alpha, out):
+    """``out = alpha s_0 + D_x^T s_1 + D_y^T s_2`` with ``s_k = (b_k + z_k) - u_k``: one pass, on every core.
+
+    The right-hand side of the ``I`` step of
+    :func:`~sparselt.recovery.poisson.screened_poisson_l1`'s ADMM, the same
+    float operations in the same order as ``alpha * shifted[0] +
+    difference_adjoint(shifted[1], shifted[2])``, so bit-identical to it.
+    ``targets``, ``z``, ``u``: triples of float64 arrays shaped ``(height,
+    width, channels)``, ``(height, width - 1, channels)`` and ``(height - 1,
+    width, channels)``; ``out`` ``(height, width, channels)``. Returns ``out``.
+    """
+    _compiled()["admm_right_hand_side"](tuple(targets), tuple(z), tuple(u), float(alpha), out)
+    return out
+
+
+def admm_update(image, previous, targets, z, u, alpha, threshold):
+    """The ``z`` and ``u`` steps of the ADMM after an ``I`` step, in place, in one pass on every core.
+
+    For each of ``H I = (alpha I, D_x I, D_y I)``'s parts: ``z_k =
+    soft(H_k I - b_k + u_k, threshold)`` then ``u_k = u_k + H_k I - b_k -
+    z_k``, each as :func:`~sparselt.recovery.poisson.screened_poisson_l1`'s
+    NumPy expressions evaluate it (bit-identical). Returns ``(|I -
+    previous|^2, |I|^2)``, the stop rule's sums (summed in another order
+    than NumPy's norm: equal to rounding).
+    """
+    return _compiled()["admm_update"](image, previous, tuple(targets), tuple(z), tuple(u), float(alpha),
+                                      float(threshold))
+
+
 _WARM = False
 
 
@@ -366,6 +455,11 @@ def warm_up():
         kernels["mark_non_positive"](out, marks)
         kernels["zero_marked"](out, marks)
     kernels["counting_order"](np.zeros(4, dtype=np.uint32), 4)
+    parts = [np.zeros((3, 3, 1)), np.zeros((3, 2, 1)), np.zeros((2, 3, 1))]
+    admm_right_hand_side(parts, [part.copy() for part in parts], [part.copy() for part in parts], 1.0,
+                         np.empty((3, 3, 1)))
+    admm_update(np.zeros((3, 3, 1)), np.zeros((3, 3, 1)), parts, [part.copy() for part in parts],
+                [part.copy() for part in parts], 1.0, 1.0)
     ordered_sums(np.zeros(4, dtype=np.uint32), [np.zeros(4, dtype=np.float32)] * 3, 4)
     for weights in (np.zeros(4, dtype=np.float32), np.zeros(4, dtype=np.float64)):
         pixel_block_cell_sums(np.zeros(4, dtype=np.int64), weights, 1, (2, 2), (2, 2, 1))

@@ -9,6 +9,8 @@ M. Kettunen, M. Manzi, M. Aittala, J. Lehtinen, F. Durand and M. Zwicker,
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .integrand import path_contribution, zero_nonfinite
@@ -19,6 +21,33 @@ from .runtime import modules
 
 GRADIENT_SHIFTS = {4: ((1, 0), (-1, 0), (0, 1), (0, -1)), 2: ((1, 0), (0, 1))}  # (dx, dy) per offset path
 GRADIENT_LANE_LIMIT = 1 << 23  # lanes (base and offset paths) per gradient-domain launch
+
+
+class GradientSamples(NamedTuple):
+    """What :func:`sample_gradients` reduces per base pixel and shift in its one launch.
+
+    Attributes
+    ----------
+    sums : ndarray, shape (height, width, 1 + offsets, 3), float64
+        Per base pixel: the sum over its ``spp`` base samples of the base
+        path's contribution (index 0) and of each offset path's (index
+        ``1 + k`` for shift ``k``); 0 for offsets outside the film.
+    camera_emission : ndarray, same shape
+        The same sums of the part of each contribution that is emission
+        seen directly by the camera ray (0 where the layout does not count it).
+    albedo : ndarray, same shape
+        The same sums of the diffuse reflectance at each path's first hit
+        (0 for a miss or a surface without a diffuse lobe): the texture that
+        :mod:`sparselt.methods.gradient_domain` demodulates.
+    nonfinite : int
+        Paths (base or offset, inside the film) whose value was NaN or
+        infinite, counted as 0.
+    """
+
+    sums: np.ndarray
+    camera_emission: np.ndarray
+    albedo: np.ndarray
+    nonfinite: int
 
 
 def gradient_paths(width, height, offsets):
@@ -57,17 +86,10 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
 
     Returns
     -------
-    sums : ndarray, shape (height, width, 1 + offsets, 3), float64
-        Per base pixel: the sum over its ``spp`` base samples of the base
-        path's contribution (index 0) and of each offset path's (index
-        ``1 + k`` for shift ``k``); 0 for offsets outside the film.
-    camera_emission : ndarray, shape (height, width, 1 + offsets, 3), float64
-        The same sums of the part of each contribution that is emission
-        seen directly by the camera ray (0 where the layout does not count
-        it), reduced in the same launch.
-    nonfinite : int
-        Paths (base or offset, inside the film) whose value was NaN or
-        infinite, counted as 0.
+    GradientSamples
+        The sums of the paths' contributions, of their emission seen
+        directly and of their first hits' diffuse albedo, per base pixel
+        and shift, and the count of non-finite paths.
     """
     if offsets not in GRADIENT_SHIFTS:
         raise ValueError(f"offsets must be one of {sorted(GRADIENT_SHIFTS)}, got {offsets!r}")
@@ -87,6 +109,7 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
         outside_per_sample = paths_per_base * pixels - gradient_paths(width, height, offsets)
         sums = np.zeros((pixels * paths_per_base, 3))
         emission_sums = np.zeros((pixels * paths_per_base, 3))
+        albedo_sums = np.zeros((pixels * paths_per_base, 3))
         nonfinite = 0
         for first in range(0, spp, per_launch):
             count = min(per_launch, spp - first)
@@ -106,7 +129,8 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
             recorded = {}
             value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded), inside)
             # A layout that counts no emission seen directly leaves its sums 0 without reducing zeros.
-            channels = [value.x, value.y, value.z]
+            albedo = dr.select(finite, recorded["diffuse_albedo"], 0.0)
+            channels = [value.x, value.y, value.z, albedo.x, albedo.y, albedo.z]
             if layout.count_camera_emission:
                 emission = dr.select(finite, recorded["camera_emission"], 0.0)
                 channels += [emission.x, emission.y, emission.z]
@@ -115,9 +139,11 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
             reduced = [dr.block_sum(channel, count) for channel in channels]
             dr.eval(reduced)
             sums += stacked(reduced[:3])
+            albedo_sums += stacked(reduced[3:6])
             if layout.count_camera_emission:
-                emission_sums += stacked(reduced[3:])
+                emission_sums += stacked(reduced[6:])
         shape = (height, width, paths_per_base, 3)
-        return sums.reshape(shape), emission_sums.reshape(shape), nonfinite
+        return GradientSamples(sums.reshape(shape), emission_sums.reshape(shape), albedo_sums.reshape(shape),
+                               nonfinite)
 
     return launch(work, seed, path_samples=spp * gradient_paths(width, height, offsets))
