@@ -262,3 +262,35 @@ def test_every_precondition_is_checked_before_anything_renders(tmp_path, monkeyp
         with pytest.raises(ValueError, match=message):
             compare(dataclasses.replace(base, **changes), tmp_path / "refused", progress=False)
         assert not (tmp_path / "refused").exists()
+
+
+COMPOSED = ("aaf-dof+oidn", "gradient-l2+oidn", "two-halves+oidn", "cosamp+oidn:gamma=0.5")
+
+
+@pytest.mark.parametrize("name", COMPOSED)
+def test_a_method_followed_by_the_denoiser_keeps_the_contract(name, context):
+    """METHOD+oidn (issue 37, 7): the contract, the method's own path samples, its options and aov_spp, and the
+    image is the method's image (same seed) denoised with the aov pass's albedo and normal."""
+    from sparselt.filters import oidn_denoise
+
+    method = get_method(name, grid_shape=SHAPE)
+    report = check_method(method, context, BUDGET)
+    result = report["result"]
+    inner = get_method(name.replace("+oidn", ""), grid_shape=SHAPE)
+    alone = run_timed(inner, context, BUDGET)
+    assert result.path_samples == alone.path_samples
+    assert method.family == "denoiser" and result.details["aov_spp"] == 4
+    buffers, _ = context.scene.render_aovs(4, BUDGET.seed)
+    np.testing.assert_array_equal(result.image, oidn_denoise(alone.image, buffers["albedo"], buffers["normal"]))
+
+
+def test_compositions_that_mean_nothing_are_refused():
+    with pytest.raises(ValueError, match="'oidn' is a denoiser itself"):
+        method_class("oidn+oidn")
+    with pytest.raises(ValueError, match="unknown denoiser 'nfor2'.*METHOD\\+oidn"):
+        method_class("pt+nfor2")
+    with pytest.raises(ValueError, match="unknown method 'nothing\\+oidn'.*METHOD\\+oidn"):
+        get_method("nothing+oidn")
+    with pytest.raises(ValueError, match="has no option 'sigma'"):
+        get_method("gradient-l1+oidn:sigma=2")
+    assert "gradient-l1+oidn" not in method_names()  # made on use, not listed

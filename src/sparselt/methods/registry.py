@@ -208,12 +208,20 @@ def method_class(name):
     Raises
     ------
     ValueError
-        Unknown name; the message lists the registered methods.
+        Unknown name; the message lists the registered methods. A name
+        ``METHOD+oidn`` is the registered method followed by the denoiser
+        (:func:`~sparselt.methods.composition.composed_class`).
     """
     _load_builtin()
     if name not in _METHODS:
+        from .composition import composed_class, split_composition
+
+        composition = split_composition(name)
+        if composition is not None and composition[0] in _METHODS:
+            return composed_class(_METHODS[composition[0]], composition[1])
         raise ValueError(f"unknown method {name!r}; registered methods: {', '.join(sorted(_METHODS))} "
-                         "(a plug-in's method needs --plugin MODULE)")
+                         "(a plug-in's method needs --plugin MODULE; any of them followed by a denoiser is "
+                         "written METHOD+oidn)")
     return _METHODS[name]
 
 
