@@ -5,6 +5,11 @@
 * Two emissive planes at two depths (noise-free: every sample that hits a
   plane returns its radiance exactly): the per-pixel filter width on each
   plane, and that the filter does not mix the planes.
+* The filter itself: its response to one impulse is smooth (the separable
+  Gaussian, no lattice in its spectrum), it is the two guided 1-D passes its
+  docstring defines, its guides stop it at a depth discontinuity, and
+  ``filter_variance_factor`` is the variance of filtered white noise; on
+  sunlit-room's fireflies ``aaf-indirect`` leaves no periodic pattern.
 * ``aaf-dof`` and ``aaf-indirect`` against a high-spp reference of Mitsuba's
   ``path``: their luminance bias and their relMSE against path tracing at the
   same spp, with standard errors from the spread over seeds.
@@ -261,10 +266,10 @@ def test_aaf_dof_keeps_each_planes_colour(emissive_planes):
     """The method itself (whatever its sample allocation): pixels of one plane farther from the transition band
     than their window (3 sigma) keep the plane's colour exactly; next to the band its mixed pixels leak.
 
-    Measured (seeds 1-8, 16 spp): the first back-plane column takes 2.9-3.1% of the front colour (the
-    mean-circle-of-confusion guide accepts mostly-back mixed pixels; a guide of the pixel's nearest and
-    farthest circle of confusion would reject them: 0 on the same samples), the next 1.8%, decaying to < 1e-4
-    at 7 pixels; the last front-plane column 0.7-1.0%."""
+    Measured (seeds 1-8, 16 spp, the guide of the pixel's nearest and farthest circle of confusion, two-pass
+    filter, 2026-12-04): the first back-plane column takes at most 1.3e-5 of the front colour, the next 5.6e-6;
+    the last front-plane column 1e-9 (the strided filter gave the same). With a guide of the pixel's mean
+    circle of confusion, which accepts mostly-back mixed pixels, the first back-plane column took 2.9-3.1%."""
     scene = emissive_planes
     context = _context(scene, "dof", 1, (WIDTH, HEIGHT))
     result = _run("aaf-dof", context, 16, 3)
@@ -281,7 +286,203 @@ def test_aaf_dof_keeps_each_planes_colour(emissive_planes):
     assert np.abs(back_leak[:, back]).max() < 0.05
 
 
-# --------------------------------------------------------------------------- 3. bias and quality against PT
+# --------------------------------------------------------------------------- 3. the filter: impulse response, guides, variance
+
+
+def _two_pass_reference(image, sigma, *, guide=None, tolerance=None, fixed_guide=None, fixed_tolerance=None,
+                        maximum_radius=24):
+    """The filter as its docstring defines it, written independently in numpy: a pass along the rows, then one
+    along the columns of its result; in each, output pixel ``p`` averages every pixel ``q`` of its row (column)
+    with ``|p - q| <= min(maximum_radius, ceil(3 s_p))``, ``s_p = min(sigma_p, maximum_radius / 3)``, weighted by
+    ``exp(-(p - q)^2 / (2 s_p^2) - |g_p - g_q|^2 / (2 tau_p^2) - |n_p - n_q|^2 / (2 tau^2))``, normalised by
+    the sum of its weights; pixels with ``sigma_p = 0`` are copied."""
+    width_clipped = np.minimum(np.asarray(sigma, np.float64), maximum_radius / 3.0)
+    radius = np.minimum(maximum_radius, np.ceil(3.0 * width_clipped))
+    guides = []
+    if guide is not None:
+        values = np.asarray(guide, np.float64).reshape(sigma.shape + (-1,))
+        guides.append((values, np.broadcast_to(np.asarray(tolerance, np.float64), sigma.shape)))
+    if fixed_guide is not None:
+        guides.append((np.asarray(fixed_guide, np.float64), np.full(sigma.shape, float(fixed_tolerance))))
+    positions = np.indices(sigma.shape)
+
+    def one_pass(values, axis):
+        total, accumulated = np.zeros(sigma.shape), np.zeros(values.shape)
+        for offset in range(-maximum_radius, maximum_radius + 1):
+            source = positions[axis] + offset
+            inside = (source >= 0) & (source < sigma.shape[axis]) & (abs(offset) <= radius) & (width_clipped > 0)
+            source = np.clip(source, 0, sigma.shape[axis] - 1)[..., None]
+            exponent = offset**2 / (2.0 * np.where(inside, width_clipped, 1.0) ** 2)
+            for guide_values, guide_tolerance in guides:
+                difference = guide_values - np.take_along_axis(guide_values, source, axis=axis)
+                exponent = exponent + (difference**2).sum(axis=-1) / (2.0 * guide_tolerance**2)
+            weight = np.where(inside, np.exp(-exponent), 0.0)
+            total += weight
+            accumulated += weight[..., None] * np.take_along_axis(values, source, axis=axis)
+        filtered = accumulated / np.maximum(total, 1e-300)[..., None]
+        return np.where((width_clipped > 0)[..., None], filtered, values)
+
+    return one_pass(one_pass(np.asarray(image, np.float64), 1), 0)
+
+
+def _gaussian_1d(sigma, size, centre, maximum_radius=24):
+    """The normalised 1-D Gaussian of one pass, centred on ``centre`` (away from the border)."""
+    width = min(sigma, maximum_radius / 3.0)
+    radius = min(maximum_radius, math.ceil(3.0 * width))
+    offsets = np.arange(size) - centre
+    weights = np.where(np.abs(offsets) <= radius, np.exp(-0.5 * (offsets / width) ** 2), 0.0)
+    return weights / weights.sum()
+
+
+#: The impulse-response images: 120 pixels (divisible by the old lattice's periods 2, 3, 4), the impulse at the
+#: centre, whose widest window (24 pixels) and its pixels' windows stay inside the image.
+IMPULSE_SIZE, IMPULSE_AT = 120, 60
+
+
+def _varying_sigma():
+    """A width that varies smoothly across the image, from 3 to 12 pixels (clipped to 8 by the default window)."""
+    y, x = np.indices((IMPULSE_SIZE, IMPULSE_SIZE)) / (IMPULSE_SIZE - 1)
+    return 3.0 + 9.0 * (0.5 * (x + y) + 0.1 * np.sin(2 * np.pi * x) * np.cos(2 * np.pi * y)).clip(0, 1)
+
+
+@pytest.mark.parametrize("sigma", [3.0, 5.0, 8.0, 12.0, "varying"])
+def test_the_impulse_response_is_smooth(sigma):
+    """A firefly spreads into a smooth spot, not a lattice of dots. The response to one impulse is, for a constant
+    width, the separable Gaussian (the outer product of two normalised 1-D Gaussians) to float32 precision; for
+    a varying width it is the two-pass definition (:func:`_two_pass_reference`). Either way its spectrum beyond
+    the Gaussian's main lobe (any frequency component of at least ``1 / sigma`` cycles per pixel) stays below 1%
+    of its DC value (measured: at most 0.1%, the truncation at 3 sigma).
+
+    The strided filter this replaced (taps ``max(1, int(sigma / 2))`` pixels apart) reached only pixels a
+    multiple of the stride away: for sigma 5, 8, 12 its response is a lattice whose spectrum repeats its DC
+    value at the frequencies ``k / stride``. Run against it, this test failed for sigma 5, 8, 12 (aliases at 100%
+    of DC) and the varying width (75%); sigma 3, stride 1, passed (0.08%)."""
+    constant = not isinstance(sigma, str)
+    sigmas = np.full((IMPULSE_SIZE, IMPULSE_SIZE), sigma) if constant else _varying_sigma()
+    image = np.zeros((IMPULSE_SIZE, IMPULSE_SIZE, 3))
+    image[IMPULSE_AT, IMPULSE_AT] = 1.0
+    response = axis_aligned_filter(image, sigmas)[..., 0].astype(np.float64)
+    if constant:
+        profile = _gaussian_1d(sigma, IMPULSE_SIZE, IMPULSE_AT)
+        expected = np.outer(profile, profile)
+    else:
+        expected = _two_pass_reference(image, sigmas)[..., 0]
+    np.testing.assert_allclose(response, expected, rtol=1e-5, atol=1e-10)
+    spectrum = np.abs(np.fft.fft2(response))
+    frequency = np.abs(np.fft.fftfreq(IMPULSE_SIZE))
+    beyond_main_lobe = np.maximum(frequency[:, None], frequency[None, :]) >= 1.0 / min(sigmas.min(), 8.0)
+    leak = spectrum[beyond_main_lobe].max() / spectrum[0, 0]
+    assert leak < 0.01, f"spectrum beyond the main lobe at {leak:.3f} of DC"
+
+
+def test_the_filter_is_two_guided_one_dimensional_passes():
+    """On random data (widths from 0 to beyond the window, a two-channel guide with per-pixel tolerances, a
+    three-channel fixed guide, the image border, a window of 9 pixels that clips wide Gaussians): the filter is
+    :func:`_two_pass_reference`, the definition in its docstring."""
+    rng = np.random.default_rng(11)
+    height, width = 37, 52
+    image = rng.random((height, width, 3))
+    sigma = np.where(rng.random((height, width)) < 0.2, 0.0, rng.uniform(0.3, 6.0, (height, width)))
+    guide = rng.normal(size=(height, width, 2))
+    tolerance = rng.uniform(0.5, 2.0, (height, width))
+    normals = rng.normal(size=(height, width, 3))
+    arguments = dict(guide=guide, tolerance=tolerance, fixed_guide=normals, fixed_tolerance=0.8, maximum_radius=9)
+    np.testing.assert_allclose(axis_aligned_filter(image, sigma, **arguments),
+                               _two_pass_reference(image, sigma, **arguments), rtol=2e-6, atol=1e-6)
+
+
+def test_the_guide_stops_the_filter_at_a_depth_discontinuity():
+    """A near surface (depth 2, an L-shaped region with a corner) in front of a far one (depth 6), every pixel
+    filtered with sigma 8 (window 24): with the depth guide (tolerance 0.1 scene units, as aaf-indirect's width
+    on the receiver) a near pixel takes less than 1e-9 of its weight from far pixels, even where each pass's
+    window crosses the corner; without it, up to half. With the normal (fixed) guide alone (perpendicular
+    normals, tolerance 0.3 as aaf-indirect's) the other surface's pixels keep the guide's weight
+    ``exp(-2 / (2 0.3^2)) = 1.5e-5`` relative to the pixel's own: a pixel takes at most a few times that from
+    them over the two passes (measured: 1.4e-5 on the near side, 2.7e-5 on the far side; the strided filter's
+    1.0e-5 and 2.7e-5)."""
+    size = 64
+    y, x = np.indices((size, size))
+    near = (x < 30) | (y < 20)
+    far_indicator = np.repeat((~near).astype(np.float64)[..., None], 3, axis=-1)
+    sigma = np.full((size, size), 8.0)
+    depth = np.where(near, 2.0, 6.0)
+    normals = np.where(near[..., None], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])
+    guided = axis_aligned_filter(far_indicator, sigma, guide=depth, tolerance=0.1)[..., 0]
+    by_normals = axis_aligned_filter(far_indicator, sigma, fixed_guide=normals, fixed_tolerance=0.3)[..., 0]
+    unguided = axis_aligned_filter(far_indicator, sigma)[..., 0]
+    normal_leak = 4 * math.exp(-1 / 0.3**2)
+    assert guided[near].max() < 1e-9 and by_normals[near].max() < normal_leak
+    assert guided[~near].min() > 1 - 1e-6 and by_normals[~near].min() > 1 - normal_leak
+    assert unguided[near].max() > 0.3
+
+
+@pytest.mark.parametrize("sigma", [0.8, 2.5, 6.0, 12.0])
+def test_filter_variance_factor_is_the_variance_of_filtered_white_noise(sigma):
+    """Filtering white noise of unit variance with a constant width: the variance of an output pixel is
+    :func:`~sparselt.methods.axis_aligned.filter_variance_factor` within 4 standard errors. Output pixels
+    ``2 radius + 1`` apart read disjoint inputs, so they are independent samples of it (``n`` of them: the
+    standard error of the variance estimate is ``sqrt(2 / n)`` of it); only pixels whose window stays inside
+    the image."""
+    from sparselt.filters.axis_aligned import gaussian_taps
+    from sparselt.methods.axis_aligned import filter_variance_factor
+
+    rng = np.random.default_rng(5)
+    _, radius = gaussian_taps(sigma, 24)
+    height, width = 4 * (2 * radius + 1), 20 * (2 * radius + 1)
+    lattice = np.arange(radius, height - radius, 2 * radius + 1), np.arange(radius, width - radius, 2 * radius + 1)
+    samples = []
+    while sum(map(len, samples)) < 4000:
+        noise = rng.standard_normal((height, width, 3))
+        filtered = axis_aligned_filter(noise, np.full((height, width), sigma)).astype(np.float64)
+        samples.append(filtered[np.ix_(*lattice)].reshape(-1))
+    samples = np.concatenate(samples)
+    measured = float(np.mean(samples**2))  # the mean is 0
+    predicted = float(filter_variance_factor(np.array([sigma]), 24)[0])
+    assert abs(measured / predicted - 1) < 4 * math.sqrt(2 / samples.size), (measured, predicted, samples.size)
+    exact = float(np.sum(np.outer(*(2 * [_gaussian_1d(sigma, 2 * radius + 1, radius)])) ** 2))
+    assert predicted == pytest.approx(exact, rel=1e-12)  # sigma 12 is clipped to 8, a third of the window
+
+
+def _lattice_peak(images, periods):
+    """How far the residual's power at the lattice frequencies of each period stands out from its neighbours.
+
+    The residual is each image's luminance less its 5x5 median (the smooth image gone; isolated dots, which the
+    median removes, kept); its power spectrum is summed over ``images``. For a period ``s`` the lattice
+    frequencies are ``(k / s, l / s)`` cycles per pixel, ``(k, l) != (0, 0)``: a dot pattern of period ``s``
+    puts its power there. Returns, per period, the mean power on them over the median of the same mean taken
+    on the lattice shifted by 3 or 4 bins (eight shifts): about 1 without a lattice."""
+    from scipy.ndimage import median_filter
+
+    power = 0.0
+    for image in images:
+        level = luminance(np.asarray(image, np.float64))
+        power = power + np.abs(np.fft.fft2(level - median_filter(level, size=5, mode="nearest"))) ** 2
+    size = power.shape[0]
+    peaks = {}
+    for period in periods:
+        bins = [k * size // period for k in range(period)]
+        points = np.array([(a, b) for a in bins for b in bins if (a, b) != (0, 0)])
+        shifts = [(3, 3), (-3, 3), (3, -3), (-3, -3), (0, 4), (4, 0), (0, -4), (-4, 0)]
+        shifted = [power[(points[:, 0] + dy) % size, (points[:, 1] + dx) % size].mean() for dy, dx in shifts]
+        peaks[period] = float(power[points[:, 0], points[:, 1]].mean() / np.median(shifted))
+    return peaks
+
+
+def test_aaf_indirect_leaves_no_lattice_around_fireflies():
+    """sunlit-room (sunlight through glass: bright caustic paths that path tracing finds by chance), 72x72,
+    16 spp, three seeds: ``aaf-indirect``'s image less its median shows no periodic pattern at the periods 2, 3
+    and 4 pixels, the strides the old strided filter used for the widths this scene gets (median about 7
+    pixels, many clipped to 8): its power there is less than twice its neighbours'.
+
+    Measured with the two-pass filter: 1.06, 1.09, 1.14 (per seed at most 1.5). With the strided filter it
+    replaced each firefly became a lattice of dots and this test failed: 10.6, 0.7 and 4.0 (per seed up to 20)."""
+    context = _context(_loaded(get_scene("sunlit-room"), (72, 72)), "indirect", 3, (72, 72))
+    images = [_run("aaf-indirect", context, 16, seed).image for seed in (1, 2, 3)]
+    peaks = _lattice_peak(images, (2, 3, 4))
+    assert max(peaks.values()) < 2.0, peaks
+
+
+# --------------------------------------------------------------------------- 4. bias and quality against PT
 
 
 def _against_reference(name, context, reference, record, spp, seeds):
@@ -321,11 +522,12 @@ def test_luminance_bias_within_one_percent_and_relmse_below_path_tracing(name, k
     scene, unbiased, within 4 standard errors of 1 (the reference and the errors are sound). Their relMSE must be
     below PT's at the same spp by more than 3 standard errors of the difference.
 
-    As run here (the pilot-and-allocation pipeline, 2026-12-03): ``aaf-dof``, textured planes 48x32, 16 spp, 16
-    seeds: luminance ratio 1.0001 +- 0.0010 (PT 1.0005 +- 0.0011), relMSE 0.0084 against PT's 0.0284 (3.4x lower);
-    ``aaf-indirect``, Cornell box 32x32, one-bounce indirect, 64 spp, 64 seeds: 0.9946 +- 0.0016 (PT 1.0007 +-
-    0.0011, reference +- 0.0009): a bias of -0.5%; relMSE 0.00119 against 0.00421 (3.5x lower). At 16 spp
-    (64 seeds) ``aaf-indirect`` reads 0.9977 +- 0.0034 (PT 1.0033 +- 0.0026): within noise, but the ratio is
+    As run here (the pilot-and-allocation pipeline, the two-pass filter, 2026-12-04): ``aaf-dof``, textured
+    planes 48x32, 16 spp, 16 seeds: luminance ratio 1.0001 +- 0.0010 (PT 1.0005 +- 0.0011), relMSE 0.0084 against
+    PT's 0.0284 (3.4x lower); ``aaf-indirect``, Cornell box 32x32, one-bounce indirect, 64 spp, 64 seeds: 0.9987
+    +- 0.0016 (PT 1.0007 +- 0.0011, reference +- 0.0009): a bias of -0.1%; relMSE 0.00126 against 0.00421 (3.3x
+    lower). The strided filter it replaced read 0.9946 (-0.5%) and 0.00119 there. With the strided filter, at
+    16 spp (64 seeds) ``aaf-indirect`` read 0.9977 +- 0.0034 (PT 1.0033 +- 0.0026): within noise, but the ratio is
     measured too coarsely for the 0.65% gate; with every pixel at 16 spp (no allocation) it read 0.9850 +- 0.0027,
     the loss in the ceiling's rows (the shortest of 16 secondary rays overestimates z_min there). So this case
     runs at 64 spp."""
@@ -349,7 +551,7 @@ def test_luminance_bias_within_one_percent_and_relmse_below_path_tracing(name, k
     assert pt_relmse - relmse > 3 * math.hypot(error[2], error[3]), summary
 
 
-# --------------------------------------------------------------------------- 4. bad input
+# --------------------------------------------------------------------------- 5. bad input
 
 
 @pytest.mark.parametrize("name, kind, supported", [("aaf-dof", "indirect", "dof"), ("aaf-indirect", "dof", "indirect")])

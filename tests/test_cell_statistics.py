@@ -2,7 +2,7 @@
 
 Each against an independent computation: a Python loop over the samples for
 the cell means, ``numpy.var`` for the variance, the window's definition for
-the strided Gaussian taps.
+the Gaussian taps.
 """
 
 import math
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sparselt.cell_statistics import VARIANCE_FORMS, cell_means, variance_from_sums
-from sparselt.filters.axis_aligned import strided_gaussian_taps
+from sparselt.filters.axis_aligned import gaussian_taps
 
 
 def _loop_means(cells, weights):
@@ -126,18 +126,16 @@ def test_variance_from_sums_refuses_an_unknown_form():
 def test_the_tap_rule_stays_in_the_window(maximum_radius):
     for sigma in np.concatenate([np.linspace(0.0, 30.0, 3001), [maximum_radius / 3.0, np.nextafter(
             maximum_radius / 3.0, np.inf), 1.9999999, 2.0, 3.9999999, 4.0]]):
-        width, reach, step = strided_gaussian_taps(float(sigma), maximum_radius)
+        width, radius = gaussian_taps(float(sigma), maximum_radius)
         assert width == min(sigma, maximum_radius / 3.0)
-        radius = min(maximum_radius, math.ceil(3.0 * width))
-        assert step == max(1, int(width / 2.0)) and reach % step == 0
-        assert radius - step < reach <= radius <= maximum_radius or (reach == 0 and radius == 0)
+        assert radius == min(maximum_radius, math.ceil(3.0 * width)) and 0 <= radius <= maximum_radius
+        assert (radius == 0) == (width == 0)
 
 
 def test_the_tap_rule_at_its_boundaries():
-    assert strided_gaussian_taps(0.0, 24) == (0.0, 0, 1)
-    assert strided_gaussian_taps(1.0, 24) == (1.0, 3, 1)  # ceil(3 sigma), every pixel
-    assert strided_gaussian_taps(1.9999, 24)[2] == 1 and strided_gaussian_taps(2.0, 24)[1:] == (6, 1)
-    assert strided_gaussian_taps(4.0, 24)[1:] == (12, 2)  # stride 2 from sigma 4
-    assert strided_gaussian_taps(5.0, 24)[1:] == (14, 2)  # radius 15 on a stride of 2: the last tap at 14
-    assert strided_gaussian_taps(100.0, 24) == (8.0, 24, 4)  # the width clipped to a third of the window
-    assert strided_gaussian_taps(100.0, 20)[1:] == (18, 3)  # radius 20 on a stride of 3
+    assert gaussian_taps(0.0, 24) == (0.0, 0)
+    assert gaussian_taps(1.0, 24) == (1.0, 3)  # ceil(3 sigma)
+    assert gaussian_taps(0.01, 24) == (0.01, 1)  # any positive width reaches its neighbours
+    assert gaussian_taps(5.0, 24) == (5.0, 15)  # every pixel within the radius: no stride
+    assert gaussian_taps(100.0, 24) == (8.0, 24)  # the width clipped to a third of the window
+    assert gaussian_taps(100.0, 20) == (20 / 3, 20)  # a window that is no multiple of 3

@@ -9,6 +9,14 @@ derive each pixel's bandlimit and filter width
 :func:`~sparselt.filters.axis_aligned.axis_aligned_filter`. Every second is
 counted: sampling with its auxiliary outputs, the analysis and the filter.
 
+**The filter** is separable (Mehta et al. 2012, 5): a guided 1-D Gaussian
+pass along the rows, then one along the columns, each with a tap at every
+pixel within ``min(maximum_radius, ceil(3 sigma))`` of the output pixel and
+normalised by its own weights, each with the output pixel's width, guide and
+tolerance (at most ``2 (2 maximum_radius + 1)`` taps per pixel). A firefly
+becomes a smooth spot, not a lattice of dots (the strided 2-D window it
+replaced); :func:`filter_variance_factor` is its variance reduction.
+
 ``aaf-dof`` (Mehta et al. 2014, 3.1; Soler et al. 2009). The width is
 ``0.307 min |c|`` pixels over the circles of confusion ``c`` of the pixel's
 samples (0 where they straddle the focal plane). Neighbours must lie at a
@@ -58,7 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..cell_statistics import variance_from_sums
-from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, dof_filter_width, indirect_filter_width, strided_gaussian_taps)
+from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, dof_filter_width, gaussian_taps, indirect_filter_width)
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .preconditions import ThinLens
 from .options import MethodOptions, option
@@ -161,10 +169,29 @@ class PixelStatistics:
 def filter_variance_factor(sigma, maximum_radius):
     """Variance of :func:`axis_aligned_filter`'s output over its input's, per pixel, for independent pixels.
 
-    ``sum w^2 / (sum w)^2`` of the strided Gaussian taps
-    (:func:`~sparselt.filters.axis_aligned.strided_gaussian_taps`, the
-    filter's own rule; separable: the square of the 1-D factor), without the
-    guide and the image border; 1 where ``sigma`` is 0.
+    Parameters
+    ----------
+    sigma : ndarray
+        Each pixel's filter width in pixels (0: not filtered).
+    maximum_radius : int
+        The filter's ``maximum_radius``.
+
+    Returns
+    -------
+    ndarray, same shape
+        ``r_p``; 1 where ``sigma`` is 0.
+
+    Notes
+    -----
+    The filter is two normalised 1-D passes with the taps of
+    :func:`~sparselt.filters.axis_aligned.gaussian_taps` (the filter's own
+    rule): one at every pixel within the radius. Without the guides, away
+    from the image border and where the width is locally constant, the 2-D
+    weights are the outer product of the 1-D ones, so the factor is the square
+    of the 1-D one, ``r_p = (sum_d w_d^2 / (sum_d w_d)^2)^2`` over the offsets
+    ``d = -radius, ..., radius``, ``w_d = exp(-d^2 / (2 sigma^2))``: about
+    ``1 / (4 pi sigma^2)`` for widths of a few pixels. Widths are rounded to
+    0.01 pixel to share the sums.
     """
     sigma = np.round(np.minimum(np.asarray(sigma, dtype=np.float64), maximum_radius / 3.0), 2)
     values, inverse = np.unique(sigma, return_inverse=True)
@@ -172,9 +199,9 @@ def filter_variance_factor(sigma, maximum_radius):
     for index, value in enumerate(values):
         if value <= 0:
             continue
-        _, reach, step = strided_gaussian_taps(value, int(maximum_radius))
-        offsets = np.arange(-reach, reach + 1, step)
-        weights = np.exp(-0.5 * (offsets / value) ** 2)
+        width, radius = gaussian_taps(value, int(maximum_radius))
+        offsets = np.arange(-radius, radius + 1)
+        weights = np.exp(-0.5 * (offsets / width) ** 2)
         table[index] = (np.sum(weights ** 2) / np.sum(weights) ** 2) ** 2
     return table[inverse].reshape(sigma.shape)
 
