@@ -1,4 +1,4 @@
-"""Copy a finished suite folder's report into the repository: tables, pages and PNGs, no npy or EXR.
+"""Copy a finished suite (or comparison) folder's report into the repository: tables, pages and PNGs, no npy or EXR.
 
 Usage::
 
@@ -26,8 +26,10 @@ SKIPPED_NAMES = {"sparselt-folder.json"}
 
 def publish(source, target):
     """Copy ``source``'s report into ``target`` (created; refused if it holds anything); return the files."""
-    if not os.path.isfile(os.path.join(source, "suite.json")) or not os.path.isfile(os.path.join(source, "index.html")):
-        raise SystemExit(f"{source!r} is not a finished suite folder (no suite.json and index.html)")
+    finished = any(os.path.isfile(os.path.join(source, name)) for name in ("suite.json", "compare.json"))
+    if not finished or not os.path.isfile(os.path.join(source, "index.html")):
+        raise SystemExit(f"{source!r} is not a finished suite or comparison folder (no suite.json or compare.json, "
+                         "and index.html)")
     if os.path.exists(target) and os.listdir(target):
         raise SystemExit(f"{target!r} is not empty: publish into a new folder")
     copied = []

@@ -145,13 +145,35 @@ def comparison_setup(folder):
 
 
 # ------------------------------------------------------------------------------------------------ comparing
-def same_number(committed, recomputed):
-    """Equal as :data:`RELATIVE` allows (floats; both NaN or the same infinity count as equal), else exactly."""
+def same_number(committed, recomputed, relative=RELATIVE):
+    """Equal as ``relative`` (:data:`RELATIVE`) allows (floats; both NaN or the same infinity count as equal),
+    else exactly."""
     if isinstance(committed, float) and isinstance(recomputed, (int, float)) and not isinstance(recomputed, bool):
         if math.isnan(committed):
             return math.isnan(recomputed)
-        return math.isclose(recomputed, committed, rel_tol=RELATIVE)
+        return math.isclose(recomputed, committed, rel_tol=relative)
     return committed == recomputed
+
+
+#: A row's ratio column -> (the method's relMSE, PT's at equal time, the reference's floor) columns it is built from.
+RATIO_INPUTS = {"relmse_ratio": ("relmse", "relmse_pt_equal_time", "reference_relmse_floor"),
+                "relmse_trimmed_ratio": ("relmse_trimmed", "relmse_trimmed_pt_equal_time",
+                                         "reference_relmse_floor_trimmed")}
+
+
+def ratio_tolerance(row, column):
+    """:data:`RELATIVE`, or more where a row's ratio ``(m - f) / (p - f)`` subtracts a floor ``f`` close to ``m`` or
+    ``p``: six printed digits (5e-6 relative) then err by ``5e-6 (|m| + |f|) / |m - f|`` and the same for ``p``,
+    times 10 for the rounding of the inputs' own inputs (a reference-limited row, whose ratio is not claimed)."""
+    names = RATIO_INPUTS.get(column)
+    values = [row.get(name) for name in names] if names else []
+    if len(values) != 3 or not all(isinstance(value, float) and math.isfinite(value) for value in values):
+        return RELATIVE
+    method, pt, floor = values
+    if method == floor or pt == floor:
+        return RELATIVE
+    amplification = (abs(method) + abs(floor)) / abs(method - floor) + (abs(pt) + abs(floor)) / abs(pt - floor)
+    return max(RELATIVE, 5e-5 * amplification)
 
 
 NUMBER = re.compile(r"(?<![\w.])\d+(?:\.\d+)?(?:e[-+]?\d+)?")
@@ -218,7 +240,7 @@ def test_summary_and_equal_time_columns_reproduce(folder):
         assert not different, f"{record['method']} at {record['spp']} spp: committed, recomputed: {different}"
     for row, want in zip(rows, committed):
         different = {key: (want.get(key, ""), row.get(key, "")) for key in DERIVED_ROW_COLUMNS
-                     if not same_number(want.get(key, ""), row.get(key, ""))}
+                     if not same_number(want.get(key, ""), row.get(key, ""), ratio_tolerance(want, key))}
         assert not different, f"{row['method']} {row['spp']} spp seed {row['seed']}: {different}"
     pt_fit = json.loads((folder / "compare.json").read_text())["pt_fit"]
     # The intercept is a difference of times: its rounding error scales with the ladder's shortest time, not with
