@@ -278,6 +278,7 @@ def _load_builtin():
         from . import samples_mean  # noqa: F401
         from . import cosamp_reconstruction  # noqa: F401
         from . import filtered  # noqa: F401
+        from . import nfor  # noqa: F401
         from . import sft_reconstruction  # noqa: F401
         from . import guided  # noqa: F401
         from . import wedge_cosamp  # noqa: F401
