@@ -294,3 +294,9 @@ def test_compositions_that_mean_nothing_are_refused():
     with pytest.raises(ValueError, match="has no option 'sigma'"):
         get_method("gradient-l1+oidn:sigma=2")
     assert "gradient-l1+oidn" not in method_names()  # made on use, not listed
+
+
+def test_a_composed_method_has_a_source():
+    from sparselt.methods.registry import method_source
+
+    assert method_source("gradient-l1+oidn") == "sparselt.methods.gradient_domain + sparselt.methods.composition"

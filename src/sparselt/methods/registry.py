@@ -197,8 +197,12 @@ def method_names():
 
 
 def method_source(name):
-    """The module (or entry point) that registered ``name``."""
+    """The module (or entry point) that registered ``name``; for ``METHOD+oidn``, the method's, then the composition's
+    module."""
     _load_builtin()
+    if name not in _SOURCES:
+        cls = method_class(name)  # a composed name (an unknown one is refused, naming the registered methods)
+        return f"{_SOURCES[cls.__mro__[1].name]} + {cls.__module__}"
     return _SOURCES[name]
 
 
