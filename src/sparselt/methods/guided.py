@@ -1,11 +1,35 @@
 r"""Guided rendering from importance maps: ``guided-pilot``, ``guided-cosamp``, ``guided-bilateral`` (thesis 6.2, 8.3, 8.4).
 
-Each method spends part of its budget on a pilot pass (``map_spp`` samples per
-cell of the map's image plane, the signal grid of the comparison), turns the
-pilot into a map over the grid, and renders the output with ``spp`` guided
-samples per pixel (:meth:`MitsubaScene.render_guided`). The map's cost (pilot
+Each method draws a pilot pass of uniform path-tracing samples, turns it into
+a map over the signal grid of the comparison, and renders the output with
+guided samples (:meth:`MitsubaScene.render_guided`). The map's cost (pilot
 samples, CoSaMP, the 4-D filter, building the CDFs) is counted in the
-method's time and its samples in ``path_samples``.
+method's time and its samples in ``path_samples``. The option
+``pilot_fraction`` says where the pilot's samples come from:
+
+``pilot_fraction > 0``: the pilot is part of the budget (default of ``guided-pilot``)
+    The pilot draws ``s_p = max(1, round(pilot_fraction * spp))`` uniform
+    samples per output pixel and the guided render the rest,
+    ``s_g = spp - s_p``: ``spp`` path samples per pixel in all. The pilot's
+    samples are path tracing's own, so the image reuses them; per pixel it is
+    ``(s_p * pilot mean + s_g * guided mean) / spp``. Both means are unbiased
+    (the guided one given any map, so given a map built from the pilot) and
+    the weights are constants, so the combination is unbiased. A pixel whose
+    image cell keeps the defensive weight 1 (the map not shown to help) is
+    plain path tracing at ``spp`` samples: path tracing's variance, the map
+    costing only time. The pilot is drawn per output pixel whatever the grid;
+    where the grid's image axes are coarser than the output, a map cell
+    averages the pixels it covers (:func:`.pixel_samples.cell_means`) and
+    the image still reuses every pilot sample in its own pixel. When
+    ``s_g < 1``, or when per-pixel mode would cross-validate the weights on
+    fewer than 2 pilot samples per pixel, the method renders plain path
+    tracing at the budget and its details say so. A pilot inside the budget
+    is the thesis's future work (9.3).
+``pilot_fraction = 0``: the thesis's procedure (6.2.1, 8.3; default of ``guided-cosamp`` and ``guided-bilateral``)
+    The pilot draws ``map_spp`` samples per cell of the map's image plane on
+    top of the budget, for the map only; the guided render draws ``spp`` per
+    pixel. ``sparselt reproduce`` (chapter 8) runs these two methods with
+    their defaults, so it keeps the thesis's procedure.
 
 Map sources:
 
