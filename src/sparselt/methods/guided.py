@@ -80,6 +80,10 @@ from .sft_reconstruction import SftOptions, reconstruct
 
 DEFAULT_MAP_SPP = 16
 DEFAULT_DEFENSIVE = 0.1
+#: ``guided-pilot``'s share of the budget drawn as the (reused) pilot; 0 is the thesis's extra pilot.
+DEFAULT_PILOT_FRACTION = 0.25
+THESIS_PILOT_FRACTION = 0.0
+PILOT_SEED_MASK = 0x5A5A5A5A  # the pilot's seed is the budget's seed XOR this (its own sample streams)
 # Per-pixel mode: candidate defensive weights per image cell, chosen by cross-validation on the pilot.
 DEFENSIVE_CANDIDATES = (0.1, 0.25, 0.5, 1.0)
 SIGNIFICANCE_Z = 2.0  # one-sided: a weight below 1 must lower the second moment by 2 standard errors
@@ -92,7 +96,8 @@ class GuidingOptions(MethodOptions):
     """The pilot pass and the mixture, shared by every guided method (thesis 6.2.1, 8.3)."""
 
     map_spp: int = option(DEFAULT_MAP_SPP, minimum=1, maximum=2**16 - 1, section="6.2.1, 8.3",
-                          help="pilot path samples per map cell of the image plane (counted in the budget)")
+                          help="pilot path samples per map cell of the image plane, on top of the budget (counted "
+                               "in path_samples); used by guided-sft and, with pilot_fraction = 0, by the others")
     mode: str = option("per-pixel", choices=MODES, section="6.2.1",
                        help="per-pixel: every pixel keeps its spp, the map guides the other axes; global: cells "
                             "drawn over the image plane too")
@@ -102,9 +107,27 @@ class GuidingOptions(MethodOptions):
                                    "pilot instead)")
 
 
+def pilot_fraction_option(default):
+    """The declaration of ``pilot_fraction`` (one help and range; the default is the method's)."""
+    return option(default, minimum=0.0, maximum=1.0, maximum_inclusive=False, section="6.2.1, 9.3",
+                  help="share of the budget drawn as a uniform path-traced pilot, max(1, round(fraction * spp)) per "
+                       "pixel, reused in the image (combined with the guided mean by sample counts: unbiased; "
+                       "the pilot in the budget is the thesis's future work 9.3); the guided render draws the rest; "
+                       "0: the thesis's pilot of map_spp per map cell on top of the budget, for the map only (6.2.1)")
+
+
+@dataclass(frozen=True)
+class GuidedPilotOptions(GuidingOptions):
+    """``guided-pilot``: the pilot in the budget by default (our variant, not a thesis procedure)."""
+
+    pilot_fraction: float = pilot_fraction_option(DEFAULT_PILOT_FRACTION)
+
+
 @dataclass(frozen=True)
 class GuidedCosampOptions(GuidingOptions, CosampOptions):
-    """A guided method whose map is a CoSaMP reconstruction (8.3, 8.4)."""
+    """A guided method whose map is a CoSaMP reconstruction (8.3, 8.4): the thesis's extra pilot by default."""
+
+    pilot_fraction: float = pilot_fraction_option(THESIS_PILOT_FRACTION)
 
 
 @dataclass(frozen=True)
