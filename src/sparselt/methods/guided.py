@@ -17,14 +17,18 @@ method's time and its samples in ``path_samples``. The option
     the weights are constants, so the combination is unbiased. A pixel whose
     image cell keeps the defensive weight 1 (the map not shown to help) is
     plain path tracing at ``spp`` samples: path tracing's variance, the map
-    costing only time. The pilot is drawn per output pixel whatever the grid;
+    costing only time; where every image cell keeps weight 1, the rest is
+    rendered by the kind's path-tracing kernel (the same estimator, without
+    the warp's cost). The pilot is drawn per output pixel whatever the grid;
     where the grid's image axes are coarser than the output, a map cell
     averages the pixels it covers (:func:`.pixel_samples.cell_means`) and
     the image still reuses every pilot sample in its own pixel. When
     ``s_g < 1``, or when per-pixel mode would cross-validate the weights on
     fewer than 2 pilot samples per pixel, the method renders plain path
-    tracing at the budget and its details say so. A pilot inside the budget
-    is the thesis's future work (9.3).
+    tracing at the budget and its details say so; so it does when the grid
+    has one cell on every non-image axis (per-pixel mode has nothing to
+    guide there: the suite's grid of a deep path kind). A pilot inside the
+    budget is the thesis's future work (9.3).
 ``pilot_fraction = 0``: the thesis's procedure (6.2.1, 8.3; default of ``guided-cosamp`` and ``guided-bilateral``)
     The pilot draws ``map_spp`` samples per cell of the map's image plane on
     top of the budget, for the map only; the guided render draws ``spp`` per
@@ -146,25 +150,105 @@ class _GuidedMethod(Method):
     kinds = ("dof", "indirect", "path")
     family = "guided"
     needs_resolution_multiple = True
-    Options = GuidingOptions
+    Options = GuidedPilotOptions
 
     def warm_up(self, context):
-        draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), resolution=tuple(context.grid_shape[:2]))
+        in_budget = self.options.get("pilot_fraction", THESIS_PILOT_FRACTION) > 0  # guided-sft: no such option
+        pilot_resolution = tuple(context.resolution) if in_budget else tuple(context.grid_shape[:2])
+        draw_pixel_samples(context, Budget(spp=1, seed=WARM_UP_SEED), resolution=pilot_resolution)
+        if in_budget:  # the fallback to plain path tracing
+            context.scene.render_estimator(context.layout, 1, WARM_UP_SEED)
         kernels.warm_up()  # the numba loops of the map's CoSaMP reconstruction
         uniform = ImportanceMap(np.ones(context.grid_shape), defensive=1.0)
         render_with_map(context, uniform, Budget(spp=1, seed=WARM_UP_SEED), self.options.mode)
 
     def run(self, context, budget, timer):
+        if self.options.pilot_fraction > 0:
+            return self._run_pilot_in_budget(context, budget, timer)
+        return self._run_thesis_pilot(context, budget, timer)
+
+    def pilot_split(self, spp):
+        """``(pilot, guided)`` samples per pixel of a budget of ``spp`` with the pilot in the budget."""
+        pilot = max(1, round(self.options.pilot_fraction * spp))
+        return pilot, spp - pilot
+
+    def _run_thesis_pilot(self, context, budget, timer):
+        """The thesis's procedure: ``map_spp`` pilot samples per map cell on top of the budget, for the map only."""
         options = self.options
-        map_spp, defensive, mode = options.map_spp, options.defensive, options.mode
+        map_spp, mode = options.map_spp, options.mode
         with timer("sampling"):
-            pilot = draw_pixel_samples(context, Budget(spp=map_spp, seed=budget.seed ^ 0x5A5A5A5A),
+            pilot = draw_pixel_samples(context, Budget(spp=map_spp, seed=budget.seed ^ PILOT_SEED_MASK),
                                        resolution=tuple(context.grid_shape[:2]))
+        importance, details, _ = self._importance(context, pilot, timer)
+        with timer("sampling"):
+            image, nonfinite = render_with_map(context, importance, budget, mode)
+        width, height = context.resolution
+        details.update(map_spp=map_spp, mode=mode, nonfinite_samples=nonfinite + pilot.nonfinite,
+                       pilot_samples=int(pilot.values.shape[0]), pilot="thesis: map_spp per map cell, extra")
+        return MethodResult(image=image, path_samples=int(pilot.values.shape[0]) + width * height * budget.spp,
+                            details=details)
+
+    def _run_pilot_in_budget(self, context, budget, timer):
+        """The pilot inside the budget, per output pixel, reused in the image (module docstring)."""
+        options = self.options
+        mode = options.mode
+        pilot_spp, guided_spp = self.pilot_split(budget.spp)
+        width, height = context.resolution
+        pilot_budget = Budget(spp=pilot_spp, seed=budget.seed ^ PILOT_SEED_MASK)
+        details = {"pilot": "in the budget, reused", "pilot_fraction": options.pilot_fraction, "mode": mode,
+                   "pilot_spp": pilot_spp, "guided_spp": guided_spp}
+        fallback = None
+        if guided_spp < 1:
+            fallback = f"the pilot's {pilot_spp} spp leave no guided sample in a budget of {budget.spp} spp"
+        elif mode == "per-pixel" and math.prod(context.grid_shape[2:]) == 1:
+            fallback = ("the map's grid has one cell on every non-image axis, so in per-pixel mode it has nothing "
+                        "to guide")
+        elif mode == "per-pixel" and pilot_spp < 2:
+            fallback = (f"{pilot_spp} pilot sample per pixel cannot cross-validate the per-cell weights "
+                        "(2 needed)")
+        if fallback is not None:
+            with timer("sampling"):
+                image, nonfinite = context.scene.render_estimator(context.layout, budget.spp, budget.seed)
+            details.update(fallback=f"plain path tracing at {budget.spp} spp: {fallback}", pilot_spp=0,
+                           guided_spp=0, nonfinite_samples=nonfinite)
+            return MethodResult(image=image, path_samples=width * height * budget.spp, details=details)
+        with timer("sampling"):
+            pilot = draw_pixel_samples(context, pilot_budget)
+        # Per-pixel mode chooses the weights first: where the map helps nowhere, it is not built at all.
+        weights = self.select_defensive(context, options, pilot, timer) if mode == "per-pixel" else None
+        if weights is not None and np.all(weights == 1.0):  # the same estimator as the map's, without the warp
+            details.update(defensive_weights="per image cell, cross-validated", mean_defensive=1.0, uniform_cells=1.0,
+                           map="not built: every image cell at weight 1",
+                           guided_render="plain path tracing: every image cell at weight 1")
+            with timer("sampling"):
+                guided, nonfinite = context.scene.render_estimator(context.layout, guided_spp, budget.seed)
+        else:
+            importance, map_details, _ = self._importance(context, pilot, timer, weights=weights)
+            details.update(map_details)
+            with timer("sampling"):
+                guided, nonfinite = render_with_map(context, importance, Budget(spp=guided_spp, seed=budget.seed),
+                                                    mode)
+        with timer("integration"):
+            combined = pilot_spp * pilot.pixel_means().astype(np.float64) + guided_spp * guided.astype(np.float64)
+            image = (combined / budget.spp).astype(np.float32)
+        samples = int(pilot.values.shape[0]) + width * height * guided_spp
+        details.update(nonfinite_samples=nonfinite + pilot.nonfinite, pilot_samples=int(pilot.values.shape[0]))
+        return MethodResult(image=image, path_samples=samples, details=details)
+
+    def _importance(self, context, pilot, timer, weights=None):
+        """The importance map built from ``pilot``, its details and the weights per image cell (None: the fixed one).
+
+        ``weights``: the per-cell weights when already chosen (per-pixel mode); otherwise per-pixel mode with 2
+        pilot samples per pixel or more chooses them here, after building the map (the thesis procedure's order).
+        """
+        options = self.options
+        defensive, mode = options.defensive, options.mode
         with timer("other"):
             cells, means, _ = cell_means(pilot, math.prod(context.grid_shape), context.grid_shape)
         values, details = self.map_values(context, options, cells, means, timer)
-        if mode == "per-pixel" and map_spp >= 2:
-            weights = self.select_defensive(context, options, pilot, timer)
+        if mode == "per-pixel" and (weights is not None or pilot.spp >= 2):
+            if weights is None:
+                weights = self.select_defensive(context, options, pilot, timer)
             with timer("other"):
                 importance = ImportanceMap(mixed_conditionals(values, weights), defensive=0.0)
             details.update(defensive_weights="per image cell, cross-validated", mean_defensive=float(weights.mean()),
@@ -173,13 +257,7 @@ class _GuidedMethod(Method):
             with timer("other"):
                 importance = ImportanceMap(values, defensive=defensive, clamp_negative=True)
             details.update(defensive=defensive)
-        with timer("sampling"):
-            image, nonfinite = render_with_map(context, importance, budget, mode)
-        width, height = context.resolution
-        details.update(map_spp=map_spp, mode=mode, nonfinite_samples=nonfinite + pilot.nonfinite,
-                       pilot_samples=int(pilot.values.shape[0]))
-        return MethodResult(image=image, path_samples=int(pilot.values.shape[0]) + width * height * budget.spp,
-                            details=details)
+        return importance, details, weights
 
     def select_defensive(self, context, options, pilot, timer):
         """The defensive weight of each image cell, chosen on the pilot's own samples (no reference).
@@ -333,7 +411,7 @@ class GuidedSft(_GuidedMethod):
 
     def run(self, context, budget, timer):
         options = self.options
-        result = reconstruct(context, options.map_spp, budget.seed ^ 0x5A5A5A5A, options)
+        result = reconstruct(context, options.map_spp, budget.seed ^ PILOT_SEED_MASK, options)
         timer.seconds["sampling"] += result.seconds["sampling"]
         timer.seconds["reconstruction"] += result.seconds["reconstruction"]
         with timer("reconstruction"):
