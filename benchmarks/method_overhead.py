@@ -113,9 +113,10 @@ def main():
             continue
         worst = max(values)
         median = statistics.median(value for value, _ in values)
+        met = sum(value <= target for value, _ in values)
         print(f"  {row}: median overhead {median:+.1%}, largest {worst[0]:+.1%} ({worst[1]}); target <= "
-              f"{target:.0%}: {'met' if worst[0] <= target else 'NOT met'} on "
-              f"{sum(value <= target for value, _ in values)} of {len(values)}")
+              f"{target:.0%} met on {met} of {len(values)} (scene, budget) pairs: "
+              f"{'met' if met == len(values) else 'NOT met'}")
 
 
 if __name__ == "__main__":
