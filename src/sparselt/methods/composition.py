@@ -89,6 +89,7 @@ def composed_class(inner, denoiser):
 
     class Composed(inner):
         name = f"{inner.name}+{denoiser}"
+        composes = inner  # the method whose image the denoiser is given
         family = "denoiser"
         thesis_procedure = False
         baseline = False

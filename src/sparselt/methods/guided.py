@@ -179,7 +179,7 @@ class _GuidedMethod(Method):
         with timer("sampling"):
             pilot = draw_pixel_samples(context, Budget(spp=map_spp, seed=budget.seed ^ PILOT_SEED_MASK),
                                        resolution=tuple(context.grid_shape[:2]))
-        importance, details, _ = self._importance(context, pilot, timer)
+        importance, details = self._importance(context, pilot, timer)
         with timer("sampling"):
             image, nonfinite = render_with_map(context, importance, budget, mode)
         width, height = context.resolution
@@ -223,7 +223,7 @@ class _GuidedMethod(Method):
             with timer("sampling"):
                 guided, nonfinite = context.scene.render_estimator(context.layout, guided_spp, budget.seed)
         else:
-            importance, map_details, _ = self._importance(context, pilot, timer, weights=weights)
+            importance, map_details = self._importance(context, pilot, timer, weights=weights)
             details.update(map_details)
             with timer("sampling"):
                 guided, nonfinite = render_with_map(context, importance, Budget(spp=guided_spp, seed=budget.seed),
@@ -236,7 +236,7 @@ class _GuidedMethod(Method):
         return MethodResult(image=image, path_samples=samples, details=details)
 
     def _importance(self, context, pilot, timer, weights=None):
-        """The importance map built from ``pilot``, its details and the weights per image cell (None: the fixed one).
+        """The importance map built from ``pilot`` and its details.
 
         ``weights``: the per-cell weights when already chosen (per-pixel mode); otherwise per-pixel mode with 2
         pilot samples per pixel or more chooses them here, after building the map (the thesis procedure's order).
@@ -257,7 +257,7 @@ class _GuidedMethod(Method):
             with timer("other"):
                 importance = ImportanceMap(values, defensive=defensive, clamp_negative=True)
             details.update(defensive=defensive)
-        return importance, details, weights
+        return importance, details
 
     def select_defensive(self, context, options, pilot, timer):
         """The defensive weight of each image cell, chosen on the pilot's own samples (no reference).

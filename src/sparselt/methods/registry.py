@@ -202,7 +202,7 @@ def method_source(name):
     _load_builtin()
     if name not in _SOURCES:
         cls = method_class(name)  # a composed name (an unknown one is refused, naming the registered methods)
-        return f"{_SOURCES[cls.__mro__[1].name]} + {cls.__module__}"
+        return f"{_SOURCES[cls.composes.name]} + {cls.__module__}"
     return _SOURCES[name]
 
 
