@@ -608,7 +608,7 @@ def test_a_guide_tolerance_must_be_positive():
 
 @pytest.mark.parametrize("kind", ["dof", "indirect"])
 def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind):
-    """sample_pixel_statistics (reduced in the sampling kernel, or for explicit lanes in numpy) equals the
+    """sample_pixel_statistics (reduced in the sampling kernel, uniform or explicit lanes) equals the
     per-pixel sums, minima and maxima of sample_pixels' per-sample outputs: the same samples, nothing else."""
     from sparselt.rendering.mitsuba import PIXEL_STATISTICS
 
@@ -641,3 +641,42 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
             part = array[pixel, :count]
             want = {"sum": part.sum(axis=0), "min": part.min(axis=0), "max": part.max(axis=0)}[reduction]
             np.testing.assert_allclose(explicit[name][pixel], want, rtol=1e-5, atol=1e-6, err_msg=name)
+
+
+def test_explicit_lanes_spanning_several_blocks_reduce_like_their_samples():
+    """Explicit lanes fill whole blocks of EXPLICIT_BLOCK slots per pixel (reduced in the kernel, merged on the
+    host): pixels with 1, a block, a block and one, and several blocks of samples, sample indices not from 0,
+    equal the reductions of the same samples of sample_pixels; the same seed gives the same bytes."""
+    from sparselt.rendering.mitsuba.pixel_statistics import EXPLICIT_BLOCK
+
+    scene = _loaded(get_scene("cornell-box").with_lens(0.1, 1.0), (6, 5))
+    layout = path_layout("dof", 3, thin_lens=True)
+    grid, first, spp = (6, 5, 2, 2), 3, 3 * EXPLICIT_BLOCK + 5
+    names = ("rgb", "rgb_squared", "nearest", "farthest")
+    values, _, _, auxiliary = scene.sample_pixels(layout, grid, spp, 9, auxiliary=("primary_depth",))
+    depth = auxiliary["primary_depth"].reshape(30, spp)
+    values = values.reshape(30, spp, 3).astype(np.float64)
+    chosen = np.array([0, 7, 8, 20, 29])
+    counts = np.array([1, EXPLICIT_BLOCK, EXPLICIT_BLOCK + 1, spp - first, 2 * EXPLICIT_BLOCK + 3])
+    lanes = (np.repeat(chosen, counts), np.concatenate([np.arange(first, first + count) for count in counts]))
+    explicit, nonfinite = scene.sample_pixel_statistics(layout, grid, 9, names, lanes=lanes)
+    again, _ = scene.sample_pixel_statistics(layout, grid, 9, names, lanes=lanes)
+    assert nonfinite == 0
+    for name in names:
+        assert explicit[name].tobytes() == again[name].tobytes(), name
+    for pixel, count in zip(chosen, counts):
+        part = slice(first, first + count)
+        np.testing.assert_allclose(explicit["rgb"][pixel], values[pixel, part].sum(axis=0), rtol=1e-5)
+        np.testing.assert_allclose(explicit["rgb_squared"][pixel], (values[pixel, part].astype(np.float32) ** 2).sum(
+            axis=0), rtol=1e-5)
+        assert explicit["nearest"][pixel] == depth[pixel, part].min()
+        assert explicit["farthest"][pixel] == depth[pixel, part].max()
+    others = np.setdiff1d(np.arange(30), chosen)
+    assert np.all(explicit["rgb"][others] == 0) and np.all(np.isinf(explicit["nearest"][others]))
+
+
+def test_explicit_lanes_must_be_sorted_by_pixel():
+    scene = _loaded(get_scene("cornell-box"), (4, 3))
+    layout = path_layout("indirect", 3, thin_lens=False)
+    with pytest.raises(ValueError, match="sorted by pixel"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([2, 1]), np.array([0, 0])))

@@ -12,6 +12,7 @@ import pytest
 from sparselt.images import luminance
 from sparselt.methods import Budget, ComparisonContext, MethodSetup, get_method, method_class, run_timed
 from sparselt.methods.gradient_domain import gradient_estimates
+from sparselt.rendering.mitsuba.gradients import gradient_paths
 from sparselt.recovery.poisson import forward_differences
 from sparselt.rendering.layout import path_layout
 from sparselt.rendering.scenes import get_scene
@@ -51,7 +52,8 @@ def gradient_runs(scene, layout):
 
 
 def test_base_paths_are_the_pixel_samples_of_the_same_seed(scene, layout):
-    sums, _, _, nonfinite = scene.sample_gradients(layout, _grid(layout), 8, 7)
+    samples = scene.sample_gradients(layout, _grid(layout), 8, 7)
+    sums, nonfinite = samples.sums, samples.nonfinite
     values, _, _ = scene.sample_pixels(layout, _grid(layout), 8, 7)
     assert sums.shape == (SIZE, SIZE, 5, 3) and nonfinite == 0
     np.testing.assert_allclose(sums[..., 0, :] / 8, values.reshape(SIZE, SIZE, 8, 3).mean(axis=2), rtol=1e-5,
@@ -100,7 +102,8 @@ def _context(scene, layout):
 
 
 def test_camera_emission_is_the_part_of_each_path_seen_directly(scene, layout):
-    sums, emission, _, _ = scene.sample_gradients(layout, _grid(layout), 4, 3)
+    samples = scene.sample_gradients(layout, _grid(layout), 4, 3)
+    sums, emission = samples.sums, samples.camera_emission
     assert np.all(emission >= 0) and np.all(emission <= sums + 1e-4)
     lit = emission[..., 0, :].sum(axis=-1) > 0  # pixels that see the ceiling light
     assert 0 < lit.mean() < 0.05
@@ -112,7 +115,7 @@ def test_camera_emission_is_the_part_of_each_path_seen_directly(scene, layout):
 @pytest.mark.parametrize("direct_emission", ["primal", "gradient"])
 def test_gradient_l2_is_unbiased(scene, layout, reference, direct_emission):
     """The method's image over seeds: luminance within 1% and every pixel within 3 standard errors but a few."""
-    method = get_method("gradient-l2", options={"direct_emission": direct_emission})
+    method = get_method("gradient-l2", options={"direct_emission": direct_emission, "alpha_choice": "fixed"})
     context = _context(scene, layout)
     runs = np.array([run_timed(method, context, Budget(spp=16, seed=seed)).image for seed in range(32)],
                     dtype=np.float64)
@@ -130,7 +133,7 @@ def test_gradient_l1_lowers_the_error_of_its_own_primal(scene, layout, reference
     from sparselt.analysis.metrics import relative_mean_squared_error
 
     context = _context(scene, layout)
-    method = get_method("gradient-l1")
+    method = get_method("gradient-l1", options={"alpha_choice": "fixed"})
     mean = reference[0].astype(np.float32)
     l1, primal = [], []
     for seed in range(8):
@@ -224,3 +227,142 @@ def test_demodulated_gradient_l2_is_consistent_on_a_textured_scene():
     assert abs(ratio - 1) < 3 * per_seed.std(ddof=1) / np.sqrt(len(runs)) + 0.005
     z = np.abs(runs.mean(axis=0) - reference) / np.sqrt(runs.var(axis=0, ddof=1) / len(runs) + reference_variance + 1e-12)
     assert np.mean(z > 3.5) < 0.03
+
+
+# The reconnection shift (issue 37, 4): unbiased by the two-sided weights, the same base paths.
+
+@pytest.fixture(scope="module")
+def reconnection_runs(scene, layout):
+    """gradient_estimates of 32 seeds at 16 base spp with the reconnection shift."""
+    runs = []
+    for seed in range(32):
+        samples = scene.sample_gradients(layout, _grid(layout), 16, seed, shift="reconnection")
+        runs.append(gradient_estimates(samples.sums, 16, samples.pairs, samples.replayed))
+    return [np.array([run[index] for run in runs]) for index in range(3)]
+
+
+def test_reconnection_keeps_the_base_paths_and_replays_up_to_the_first_hit(scene, layout):
+    replay = scene.sample_gradients(layout, _grid(layout), 4, 9)
+    reconnection = scene.sample_gradients(layout, _grid(layout), 4, 9, shift="reconnection")
+    assert replay.pairs is None and reconnection.pairs.shape == (SIZE, SIZE, 4, 2, 3)
+    np.testing.assert_allclose(reconnection.sums[..., 0, :], replay.sums[..., 0, :], rtol=1e-4, atol=1e-5)
+    # the first hits are the replay's: the same albedo and emission seen directly, offsets included
+    np.testing.assert_allclose(reconnection.albedo, replay.albedo, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(reconnection.camera_emission, replay.camera_emission, rtol=1e-5, atol=1e-6)
+    assert not reconnection.pairs[:, -1, 0].any() and not reconnection.pairs[0, :, 3].any()  # outside the film
+    # each side's weights are in [0, 1]: a weighted tail is at most the path's value
+    assert np.all(reconnection.pairs[..., 0, :] <= reconnection.sums[..., :1, :] + 1e-4)
+
+
+def test_reconnection_estimates_are_unbiased(reconnection_runs, reference):
+    mean, error, _ = reference
+    for index, axis in ((1, 1), (2, 0)):
+        runs = reconnection_runs[index]
+        expected = forward_differences(mean)[index - 1]
+        reference_error = np.sqrt(np.take(error, range(1, error.shape[axis]), axis=axis) ** 2
+                                  + np.take(error, range(error.shape[axis] - 1), axis=axis) ** 2)
+        z = np.abs(runs.mean(axis=0) - expected) / np.maximum(
+            np.sqrt(runs.var(axis=0, ddof=1) / len(runs) + reference_error ** 2), 1e-12)
+        assert np.mean(z > 3) < 0.02, np.mean(z > 3)
+    primal = reconnection_runs[0]
+    z = np.abs(primal.mean(axis=0) - mean) / np.sqrt(primal.var(axis=0, ddof=1) / len(primal) + error ** 2)
+    assert np.mean(z > 3) < 0.02
+
+
+@pytest.mark.parametrize("name, kind", [("dof-sculptures", "dof"), ("outdoor-texture", "indirect")])
+def test_reconnection_agrees_with_replay_on_rough_surfaces_and_sky(name, kind):
+    """Glossy second vertices (re-evaluated), rays into the sky (reconnected in direction), depth of field: the
+    reconnection shift's estimates and the replay shift's (both unbiased) agree within their standard errors."""
+    from sparselt.rendering.mitsuba import MitsubaScene
+
+    size = 12
+    scene = MitsubaScene(get_scene(name), (size, size))
+    layout = path_layout(kind, 3, thin_lens=kind == "dof")
+    grid = (size, size) + (2,) * (len(layout.axes) - 2)
+    estimates = {}
+    for shift in ("replay", "reconnection"):
+        runs = []
+        for seed in range(24):
+            samples = scene.sample_gradients(layout, grid, 32, seed, shift=shift)
+            runs.append(gradient_estimates(samples.sums, 32, samples.pairs, samples.replayed))
+        estimates[shift] = [np.array([run[index] for run in runs]) for index in range(3)]
+    for index in range(3):
+        replay, reconnection = estimates["replay"][index], estimates["reconnection"][index]
+        standard_error = np.sqrt(replay.var(axis=0, ddof=1) / len(replay)
+                                 + reconnection.var(axis=0, ddof=1) / len(reconnection))
+        z = np.abs(reconnection.mean(axis=0) - replay.mean(axis=0)) / np.maximum(standard_error, 1e-12)
+        assert np.mean(z > 3) < 0.02, (index, np.mean(z > 3))
+
+
+def test_reconnection_needs_the_four_neighbours(scene, layout):
+    from sparselt.methods.options import resolve_options
+
+    with pytest.raises(ValueError, match="the reconnection shift needs offsets=4"):
+        scene.sample_gradients(layout, _grid(layout), 1, 1, offsets=2, shift="reconnection")
+    with pytest.raises(ValueError, match="shift must be one of replay, reconnection"):
+        scene.sample_gradients(layout, _grid(layout), 1, 1, shift="mirror")
+    with pytest.raises(ValueError, match=r"shift='reconnection' needs offsets=4"):
+        resolve_options(method_class("gradient-l1").Options, {"shift": "reconnection", "offsets": "2"},
+                        grid_shape=(8, 8), owner="gradient-l1")
+
+
+# The held-out choice of alpha (issue 37: no method loses beyond noise).
+
+def _smooth_image(size=48, seed=0):
+    generator = np.random.default_rng(seed)
+    y, x = np.mgrid[0:size, 0:size] / size
+    image = np.stack([0.5 + 0.3 * np.sin(3 * x + c) * np.cos(2 * y) for c in range(3)], axis=-1)
+    return image, generator
+
+
+def test_held_out_alpha_trusts_good_gradients_and_drops_useless_ones():
+    """Exact gradients and a noisy primal: a small alpha; gradients that are noise only: the primal image (inf)."""
+    from sparselt.recovery.poisson import HELD_OUT_ALPHAS, held_out_alpha
+
+    image, generator = _smooth_image()
+    exact = forward_differences(image)
+
+    def half(gradient_noise):
+        primal = image + 0.2 * generator.standard_normal(image.shape)
+        return (primal,) + tuple(g + gradient_noise * generator.standard_normal(g.shape) for g in exact)
+
+    alpha, scores = held_out_alpha([half(0.0), half(0.0)])
+    assert alpha == min(HELD_OUT_ALPHAS) and set(scores) == set(HELD_OUT_ALPHAS)
+    alpha, scores = held_out_alpha([half(5.0), half(5.0)])
+    assert alpha == float("inf") and scores[alpha] < scores[0.2]
+
+
+def test_held_out_alpha_scores_the_reconstruction_error_up_to_a_constant():
+    """The score of each alpha, averaged over draws, tracks the true squared error of the half reconstructions
+    (plus a constant): its differences between alphas match the true error's within their standard errors."""
+    from sparselt.recovery.poisson import held_out_alpha, screened_poisson_family
+
+    image, generator = _smooth_image(32, seed=3)
+    exact = forward_differences(image)
+    alphas = (0.1, 0.4, 1.6, float("inf"))
+    differences = []
+    for _ in range(40):
+        halves = [(image + 0.1 * generator.standard_normal(image.shape),)
+                  + tuple(g + 0.1 * generator.standard_normal(g.shape) for g in exact) for _ in range(2)]
+        _, scores = held_out_alpha(halves, alphas=alphas, epsilon=1e9)  # weights ~ 1/epsilon: plain squared error
+        true = [sum(np.sum(np.square(r - image)) for r in (screened_poisson_family(*h, (alpha,))[0]
+                                                           for h in halves)) for alpha in alphas]
+        differences.append([(scores[alpha] - scores[alphas[-1]]) * 1e9 - (true[k] - true[-1])
+                            for k, alpha in enumerate(alphas)])
+    differences = np.array(differences)
+    standard_error = differences.std(axis=0, ddof=1) / np.sqrt(len(differences))
+    assert np.all(np.abs(differences.mean(axis=0)) <= 3 * standard_error + 1e-9), differences.mean(axis=0)
+
+
+def test_gradient_methods_choose_alpha_from_their_own_halves(scene, layout):
+    """Held out (the default): two halves at seeds 2s and 2s + 1, every path counted once, the choice recorded;
+    one sample per pixel cannot be halved and keeps the fixed alpha."""
+    context = _context(scene, layout)
+    result = run_timed(get_method("gradient-l2"), context, Budget(spp=4, seed=5))
+    assert result.details["alpha_choice"] == "held-out" and result.details["alpha_scores"]
+    assert result.details["alpha"] in [float(key) for key in result.details["alpha_scores"]]
+    assert result.path_samples == 4 * gradient_paths(SIZE, SIZE, 4)
+    again = run_timed(get_method("gradient-l2"), context, Budget(spp=4, seed=5))
+    np.testing.assert_array_equal(result.image, again.image)
+    single = run_timed(get_method("gradient-l2"), context, Budget(spp=1, seed=5))
+    assert single.details["alpha"] == 0.2 and single.details["alpha_scores"] is None

@@ -126,6 +126,8 @@ def test_the_seam_counts_every_path_sample_of_every_estimator(scene):
         "statistics of lanes": (lambda: scene.sample_pixel_statistics(layout, grid, 1, ("rgb",), lanes=lanes), 4),
         "gradients": (lambda: scene.sample_gradients(layout, grid, 2, 1, offsets=4),
                       2 * gradient_paths(WIDTH, HEIGHT, 4)),
+        "reconnected gradients": (lambda: scene.sample_gradients(layout, grid, 2, 1, shift="reconnection"),
+                                  2 * gradient_paths(WIDTH, HEIGHT, 4)),
         "estimator": (lambda: scene.render_estimator(layout, 2, 1), 2 * pixels),
         "guided": (lambda: scene.render_guided(layout, grid, tables, densities, 2, 1, mode="global"), 2 * pixels),
         "path": (lambda: scene.render_path(3, 3, 1), 3 * pixels),

@@ -61,6 +61,8 @@ Mehta, Yao, Ramamoorthi, Durand (2014). See :mod:`sparselt.filters.axis_aligned`
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -163,7 +165,9 @@ class PixelStatistics:
         level = luminance(mean)
         relative = variance.mean(axis=-1) / (level * level + 0.01)
         padded = np.pad(relative, 2, mode="edge")
-        return np.lib.stride_tricks.sliding_window_view(padded, (5, 5)).mean(axis=(-1, -2))
+        height, width = relative.shape
+        rows = sum(padded[:, offset:offset + width] for offset in range(5))  # the 5x5 box, separably
+        return sum(rows[offset:offset + height] for offset in range(5)) / 25.0
 
 
 def filter_variance_factor(sigma, maximum_radius):
@@ -193,17 +197,22 @@ def filter_variance_factor(sigma, maximum_radius):
     ``1 / (4 pi sigma^2)`` for widths of a few pixels. Widths are rounded to
     0.01 pixel to share the sums.
     """
-    sigma = np.round(np.minimum(np.asarray(sigma, dtype=np.float64), maximum_radius / 3.0), 2)
-    values, inverse = np.unique(sigma, return_inverse=True)
-    table = np.ones(values.size)
-    for index, value in enumerate(values):
-        if value <= 0:
-            continue
-        width, radius = gaussian_taps(value, int(maximum_radius))
+    sigma = np.minimum(np.asarray(sigma, dtype=np.float64), maximum_radius / 3.0)
+    hundredths = np.rint(np.maximum(sigma, 0.0) * 100.0).astype(np.int64)  # the width rounded to 0.01 pixel
+    return _variance_factor_table(int(maximum_radius))[hundredths]
+
+
+@functools.lru_cache(maxsize=8)
+def _variance_factor_table(maximum_radius):
+    """:func:`filter_variance_factor` of every width ``0, 0.01, ..., maximum_radius / 3`` (read only)."""
+    table = np.ones(int(math.floor(maximum_radius / 3.0 * 100.0 + 0.5)) + 1)
+    for index in range(1, table.size):
+        width, radius = gaussian_taps(index / 100.0, maximum_radius)
         offsets = np.arange(-radius, radius + 1)
         weights = np.exp(-0.5 * (offsets / width) ** 2)
         table[index] = (np.sum(weights ** 2) / np.sum(weights) ** 2) ** 2
-    return table[inverse].reshape(sigma.shape)
+    table.flags.writeable = False
+    return table
 
 
 def allocate_samples(relative_variance, variance_factor, extra_total, cap):
@@ -230,9 +239,12 @@ def allocate_samples(relative_variance, variance_factor, extra_total, cap):
         return share.reshape(np.shape(relative_variance))
     ideal = np.minimum(extra_total * weight / weight.sum(), cap)
     counts = np.floor(ideal).astype(np.int64)
-    left = int(extra_total - counts.sum())
-    if left > 0:
-        order = np.argsort(-(ideal - counts), kind="stable")[:left]
+    left = min(int(extra_total - counts.sum()), counts.size)
+    if left > 0:  # one more each for the largest remainders (ties: the lower pixel index first)
+        remainder = ideal - counts
+        threshold = np.partition(remainder, remainder.size - left)[remainder.size - left]
+        above = np.flatnonzero(remainder > threshold)
+        order = np.concatenate((above, np.flatnonzero(remainder == threshold)[:left - above.size]))
         counts[order] = np.minimum(counts[order] + 1, cap)
     return counts.reshape(np.shape(relative_variance))
 
@@ -251,8 +263,9 @@ class _AxisAligned(Method):
     gathers, :data:`~sparselt.rendering.mitsuba.PIXEL_STATISTICS`),
     :attr:`pilot_statistics` (those the pilot alone gives: guides),
     :meth:`widths` (the analysis) and :meth:`finish` (the filtered image).
-    Every reduction happens in the sampling kernel; nothing per sample is
-    copied out of it for a uniform pass.
+    Every reduction happens in the sampling kernel, for the uniform pilot
+    and for the allocated explicit lanes alike: nothing per sample is copied
+    out of it (:func:`~sparselt.rendering.mitsuba.pixel_statistics.sample_pixel_statistics`).
     """
 
     family = "filter"
@@ -306,9 +319,10 @@ class _AxisAligned(Method):
         for group in groups:
             with timer("other"):
                 counts = extra[group]
-                pixel_ids = np.repeat(group, counts)
-                starts = np.repeat(np.cumsum(counts) - counts, counts)
-                sample_ids = first_index + np.arange(pixel_ids.size) - starts
+                pixel_ids = np.repeat(group.astype(np.uint32), counts)
+                # Sample indices first_index, first_index + 1, ... within each pixel.
+                sample_ids = np.arange(pixel_ids.size, dtype=np.uint32) - np.repeat(
+                    (np.cumsum(counts) - counts - first_index).astype(np.uint32), counts)
             with timer("sampling"):
                 reduced, bad = context.scene.sample_pixel_statistics(
                     context.layout, context.grid_shape, budget.seed, self.statistics, lanes=(pixel_ids, sample_ids))

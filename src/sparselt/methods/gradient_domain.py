@@ -33,9 +33,17 @@ a depth discontinuity the shifted camera ray lands on different geometry and
 the whole path differs; after a rough bounce small differences in the hit
 point grow with distance; an emitter seen directly, or a caustic seen through
 glass, is an on/off difference at its edge. There the gradient sample is as
-noisy as two independent paths, or worse (the paper's reconnection shift
-does better on diffuse vertices; it is not built). Film edges have no
-outward offset.
+noisy as two independent paths, or worse. Film edges have no outward offset.
+
+**The reconnection shift** (option ``shift='reconnection'``,
+:mod:`sparselt.rendering.mitsuba.reconnection`): the offset replays the base
+up to its first hit and then reconnects to the base's second vertex where
+both samples are rough (Kettunen et al. 2015, 5.1), so the pair shares all
+the light beyond ``x2``; the pairs are weighted from both sides (multiple
+importance sampling), which keeps the estimates unbiased where the
+reconnection fails. Its price: the offsets no longer bring new light paths,
+so the primal image has one independent tail per base sample instead of
+five. Measured in ``docs/experiments/ablation-shift`` (see the README there).
 
 **Emitters seen directly** (option ``direct_emission``). The part of a path's
 contribution that is emission seen by the camera ray itself
@@ -79,14 +87,33 @@ own noise at pixels that straddle texture edges (sub-pixel texture) is no
 longer cancelled by the division, and that noise is of the order of what the
 gradients gained. Kettunen et al.'s reconnection shift, which keeps the
 offset path's light path and changes only its first vertex, is the remedy
-the paper gives; it is not built.
+the paper gives (``shift='reconnection'``, above).
 
 **Reconstruction** (:mod:`sparselt.recovery.poisson`). ``gradient-l2``: the
 screened Poisson solution ``min alpha^2 |I - P|^2 + |D_x I - G_x|^2 + |D_y I
-- G_y|^2`` by one DCT-II (Neumann), ``alpha = 0.2``; linear in its inputs, so
-unbiased. ``gradient-l1``: the same objective with the L1 norm by ADMM over
-the same DCT solve (biased, robust to the gradients' outliers, as in the
-paper's "L1" reconstructions).
+- G_y|^2`` by one DCT-II (Neumann); with a fixed alpha (``alpha_choice=
+'fixed'``, the paper's 0.2) linear in its inputs, so unbiased.
+``gradient-l1``: the same objective with the L1 norm by ADMM over the same
+DCT solve (biased, robust to the gradients' outliers, as in the paper's "L1"
+reconstructions).
+
+**The choice of alpha** (option ``alpha_choice``, default ``'held-out'``).
+How much the gradients should be trusted depends on the scene: where the
+shift correlates the pair (diffuse surfaces) a small alpha wins; where it
+does not (fireflies, caustics, depth of field through glossy objects) the
+gradients are noisier than the pixels and any fixed alpha loses to path
+tracing (issue 37 measured 0.17-0.58x). The samples are drawn as two
+independent halves (seeds ``2 s`` and ``2 s + 1``); each half's L2
+reconstruction, for each alpha of a factor-2 ladder around 0.2 and for the
+primal image alone, is scored against the *other* half's primal image
+(:func:`~sparselt.recovery.poisson.held_out_alpha`: an unbiased estimate of
+its squared error up to a constant, weighted like relMSE), and the best
+alpha reconstructs all the samples. No reference is used; the cost is two
+launches and a few inverse DCTs. Where the gradients are judged useless the
+image is the primal image: path tracing with the offset paths as its
+samples. The choice depends on the samples, so the image is consistent
+(its bias vanishes with spp) rather than unbiased. One sample per pixel
+cannot be halved and keeps ``alpha``.
 
 References
 ----------
@@ -107,8 +134,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..recovery.poisson import DEFAULT_ALPHA, screened_poisson, screened_poisson_l1
-from ..rendering.mitsuba.gradients import GRADIENT_SHIFTS, gradient_paths
+from ..recovery.poisson import DEFAULT_ALPHA, held_out_alpha, screened_poisson, screened_poisson_l1
+from ..rendering.mitsuba.gradients import GRADIENT_SHIFTS, SHIFT_MAPS, gradient_paths
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .options import MethodOptions, option
 from .preconditions import FilmResolution
@@ -133,6 +160,19 @@ class GradientOptions(MethodOptions):
                                     "('none', as in the paper; the ablation of issue 37 found no consistent gain)")
     albedo_floor: float = option(0.02, minimum=0.0, maximum=1.0,
                                  help="a channel whose pixel albedo is at most this is not demodulated")
+    alpha_choice: str = option("held-out", choices=("held-out", "fixed"),
+                               help="'held-out': alpha from a ladder around 0.2 (or the primal image alone) by how "
+                                    "well one half of the samples' L2 reconstruction predicts the other half's primal "
+                                    "image (no reference used); 'fixed': the option alpha, as in the paper")
+    shift: str = option("replay", choices=SHIFT_MAPS,
+                        help="the shift map: replay every random number at the neighbour ('replay'), or replay up "
+                             "to the first hit and reconnect to the base's second vertex where both samples are "
+                             "rough ('reconnection', Kettunen et al. 2015, 5.1; needs offsets=4)")
+
+    def __post_init__(self):
+        if self.shift == "reconnection" and self.offsets != 4:
+            raise ValueError(f"shift='reconnection' needs offsets=4 (its pairs are weighted from both sides), got "
+                             f"offsets={self.offsets}")
 
 
 @dataclass(frozen=True)
@@ -147,7 +187,7 @@ class GradientL1Options(GradientOptions):
                               help="stop when an iteration moves the image by less than this times its norm")
 
 
-def gradient_estimates(sums, spp):
+def gradient_estimates(sums, spp, pairs=None, replayed=None):
     """The primal image and the two gradient images from the per-pixel sums of base and offset paths.
 
     Parameters
@@ -158,12 +198,20 @@ def gradient_estimates(sums, spp):
         :data:`~sparselt.rendering.mitsuba.GRADIENT_SHIFTS` after.
     spp : int
         Base samples per pixel.
+    pairs, replayed : ndarray, optional
+        The reconnection shift's weighted tails and replayed parts
+        (:class:`~sparselt.rendering.mitsuba.gradients.GradientSamples`).
+        With them the replayed parts are estimated from ``replayed`` as
+        below, and the tails as each pixel's mean over its neighbours of the
+        pair's two-sided estimate and each gradient as the sum of the two
+        sides' weighted differences (:mod:`sparselt.rendering.mitsuba.reconnection`);
+        ``sums`` is then not used.
 
     Returns
     -------
     primal : ndarray, shape (height, width, 3)
-        The mean of every path landing in the pixel (its base paths and its
-        neighbours' offsets).
+        The mean of every path that lands in the pixel (its base paths and its
+        neighbours' offsets); with ``pairs``, the mean of its pairs' estimates.
     gradient_x : ndarray, shape (height, width - 1, 3)
         Estimates of ``I(y, x + 1) - I(y, x)``: the mean over every base/offset
         pair that spans the two pixels (one or two per sample).
@@ -173,6 +221,10 @@ def gradient_estimates(sums, spp):
     sums = np.asarray(sums, dtype=np.float64)
     height, width, paths, _ = sums.shape
     shifts = GRADIENT_SHIFTS[paths - 1]
+    if pairs is not None:
+        replayed_estimates = gradient_estimates(replayed, spp)
+        tail_estimates = _pair_estimates(np.asarray(pairs, dtype=np.float64), spp, shifts)
+        return tuple(first + second for first, second in zip(replayed_estimates, tail_estimates))
     base = sums[:, :, 0]
     primal = base.copy()
     landed = np.ones((height, width))
@@ -191,6 +243,24 @@ def gradient_estimates(sums, spp):
     gradient_x = gradients["x"][0] / (spp * gradients["x"][1])
     gradient_y = gradients["y"][0] / (spp * gradients["y"][1])
     return primal, gradient_x, gradient_y
+
+
+def _pair_estimates(pairs, spp, shifts):
+    """:func:`gradient_estimates` from two-sided weighted pair sums: each pair ``(p, p + s)`` estimates ``I(p)`` by
+    ``W_base(p, s) + W_offset(p + s, -s)`` and ``I(p + s) - I(p)`` by the sum of both sides' weighted differences."""
+    height, width = pairs.shape[:2]
+    primal = np.zeros((height, width, 3))
+    partners = np.zeros((height, width))
+    gradients = {"x": np.zeros((height, width - 1, 3)), "y": np.zeros((height - 1, width, 3))}
+    for k, (dx, dy) in enumerate(shifts):
+        base, offset = pairs[:, :, k, 0], pairs[:, :, k, 1]
+        source, target = _landing(height, width, dx, dy)
+        primal[source] += base[source]
+        primal[target] += offset[source]
+        partners[source] += 1.0
+        axis = "x" if dx else "y"
+        gradients[axis] += (offset - base)[source] if dx + dy > 0 else (base - offset)[source]
+    return primal / (spp * partners[..., None]), gradients["x"] / spp, gradients["y"] / spp
 
 
 def _landing(height, width, dx, dy):
@@ -233,6 +303,35 @@ def demodulation_divisors(albedo_sums, spp, floor):
     return pixel, paths
 
 
+def _merged(parts):
+    """One :class:`~sparselt.rendering.mitsuba.gradients.GradientSamples` of several draws: their sums added."""
+    if len(parts) == 1:
+        return parts[0]
+    first, *rest = parts
+
+    def total(name):
+        values = [getattr(part, name) for part in parts]
+        return None if values[0] is None else sum(values[1:], values[0])
+
+    return first._replace(**{name: total(name) for name in first._fields})
+
+
+def _estimates(samples, spp, separate, divisors):
+    """The primal and gradient estimates of ``samples``: without the emission seen directly if ``separate``,
+    demodulated by ``divisors`` (:func:`demodulation_divisors`' per-path divisors) if given."""
+    sums, replayed, pairs = samples.sums, samples.replayed, samples.pairs
+    if separate:
+        sums = sums - samples.camera_emission
+        replayed = None if replayed is None else replayed - samples.camera_emission
+    if divisors is not None:
+        sums = sums / divisors
+        if pairs is not None:
+            replayed = replayed / divisors
+            pairs = pairs / np.stack([divisors[:, :, :1].repeat(divisors.shape[2] - 1, axis=2), divisors[:, :, 1:]],
+                                     axis=3)
+    return gradient_estimates(sums, spp, pairs, replayed)
+
+
 class _GradientDomain(Method):
     """Sampling (base and offset paths in one kernel), the estimates, a reconstruction: both methods' pipeline."""
 
@@ -249,34 +348,48 @@ class _GradientDomain(Method):
         if (width, height) != (context.scene.width, context.scene.height):
             raise ValueError(f"{self.name} renders at the scene's film resolution {context.scene.width}x"
                              f"{context.scene.height}, got an output resolution {width}x{height}")
+        held_out = options.alpha_choice == "held-out" and budget.spp >= 2
+        # Held out: two independent halves (seeds 2 s and 2 s + 1), so that each half's primal image can judge
+        # the other's reconstruction; the estimates of all the samples are those of their summed sums.
+        parts = ((budget.spp // 2, 2 * budget.seed), (budget.spp - budget.spp // 2, 2 * budget.seed + 1)) \
+            if held_out else ((budget.spp, budget.seed),)
         with timer("sampling"):
-            samples = context.scene.sample_gradients(context.layout, context.grid_shape, budget.spp, budget.seed,
-                                                     offsets=options.offsets)
+            drawn = [context.scene.sample_gradients(context.layout, context.grid_shape, spp, seed,
+                                                    offsets=options.offsets, shift=options.shift)
+                     for spp, seed in parts]
         with timer("integration"):
-            sums = samples.sums
+            samples = _merged(drawn)
             separate = options.direct_emission == "primal" and context.layout.count_camera_emission
-            if separate:
-                sums = sums - samples.camera_emission
             demodulate = options.demodulation == "albedo"
-            if demodulate:
-                albedo, divisors = demodulation_divisors(samples.albedo, budget.spp, options.albedo_floor)
-                sums = sums / divisors
-            primal, gradient_x, gradient_y = gradient_estimates(sums, budget.spp)
+            albedo, divisors = (demodulation_divisors(samples.albedo, budget.spp, options.albedo_floor)
+                                if demodulate else (None, None))
+            primal, gradient_x, gradient_y = _estimates(samples, budget.spp, separate, divisors)
+            halves = [_estimates(part, spp, separate, divisors) for part, (spp, _) in zip(drawn, parts)] \
+                if held_out else None
         with timer("reconstruction"):
-            result = self.reconstruct(options, primal, gradient_x, gradient_y)
-            image = result.estimate * albedo if demodulate else result.estimate
+            alpha, scores = options.alpha, None
+            if held_out:
+                alpha, scores = held_out_alpha(halves)
+            if np.isfinite(alpha):
+                result = self.reconstruct(options, alpha, primal, gradient_x, gradient_y)
+                estimate, iterations, stop_reason = result.estimate, result.iterations, result.stop_reason
+            else:  # the gradients judged useless: the primal image (every path of the pixel, PT's estimator)
+                estimate, iterations, stop_reason = primal, 0, "primal"
+            image = estimate * albedo if demodulate else estimate
             if separate:
                 image = image + gradient_estimates(samples.camera_emission, budget.spp)[0]
         paths = budget.spp * gradient_paths(width, height, options.offsets)
-        details = {"offsets": options.offsets, "alpha": options.alpha, "direct_emission": options.direct_emission,
+        details = {"offsets": options.offsets, "shift": options.shift, "alpha": float(alpha),
+                   "alpha_choice": options.alpha_choice,
+                   "alpha_scores": {str(key): value for key, value in scores.items()} if scores else None,
+                   "direct_emission": options.direct_emission,
                    "demodulation": options.demodulation, "albedo_floor": options.albedo_floor,
                    "demodulated_fraction": float(np.mean(albedo != 1.0)) if demodulate else 0.0,
-                   "iterations": result.iterations,
-                   "stop_reason": result.stop_reason, "nonfinite_samples": samples.nonfinite,
+                   "iterations": iterations, "stop_reason": stop_reason, "nonfinite_samples": samples.nonfinite,
                    "paths_per_base_sample": paths / (budget.spp * width * height)}
         return MethodResult(image=np.asarray(image, dtype=np.float32), path_samples=int(paths), details=details)
 
-    def reconstruct(self, options, primal, gradient_x, gradient_y):  # pragma: no cover - interface
+    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y):  # pragma: no cover - interface
         raise NotImplementedError
 
 
@@ -289,8 +402,8 @@ class GradientL2(_GradientDomain):
     description = ("gradient-domain path tracing: base paths and their one-pixel shifts in primary sample space, "
                    "screened Poisson L2 solve by one DCT (unbiased)")
 
-    def reconstruct(self, options, primal, gradient_x, gradient_y):
-        return screened_poisson(primal, gradient_x, gradient_y, alpha=options.alpha)
+    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y):
+        return screened_poisson(primal, gradient_x, gradient_y, alpha=alpha)
 
 
 @register
@@ -302,6 +415,6 @@ class GradientL1(_GradientDomain):
     description = ("gradient-domain path tracing with the L1 reconstruction (ADMM over the DCT solve; biased, "
                    "robust to outlying gradients)")
 
-    def reconstruct(self, options, primal, gradient_x, gradient_y):
-        return screened_poisson_l1(primal, gradient_x, gradient_y, alpha=options.alpha,
+    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y):
+        return screened_poisson_l1(primal, gradient_x, gradient_y, alpha=alpha,
                                    tolerance=options.tolerance, max_iterations=options.max_iterations)

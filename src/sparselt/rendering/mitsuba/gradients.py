@@ -17,9 +17,13 @@ from .integrand import path_contribution, zero_nonfinite
 from .lanes import pss_vector, seeded_generator
 from .launch import launch
 from .readback import count_false, stacked
+from .reconnection import shifted_pair, split_path
 from .runtime import modules
 
 GRADIENT_SHIFTS = {4: ((1, 0), (-1, 0), (0, 1), (0, -1)), 2: ((1, 0), (0, 1))}  # (dx, dy) per offset path
+#: The shift maps: random replay of every number, or replay up to the first hit and reconnection to the base's
+#: second vertex where it is diffuse (:mod:`sparselt.rendering.mitsuba.reconnection`).
+SHIFT_MAPS = ("replay", "reconnection")
 GRADIENT_LANE_LIMIT = 1 << 23  # lanes (base and offset paths) per gradient-domain launch
 
 
@@ -42,12 +46,27 @@ class GradientSamples(NamedTuple):
     nonfinite : int
         Paths (base or offset, inside the film) whose value was NaN or
         infinite, counted as 0.
+    replayed : ndarray, shape (height, width, 1 + offsets, 3), or None
+        The reconnection shift's sums, per base pixel and shift, of the parts
+        of each path before its first bounce (emission seen directly, the
+        first vertex's light sample): replayed, so each offset's is an
+        unbiased sample of its pixel. ``None`` for the replay shift.
+    pairs : ndarray, shape (height, width, offsets, 2, 3), or None
+        The reconnection shift's sums per base pixel and shift of each side's
+        multiple-importance-weighted tails (everything after the first hit):
+        the base's (index 0) and the offset's (index 1)
+        (:mod:`~sparselt.rendering.mitsuba.reconnection`). Under reconnection
+        an offset's tail is not on its own an unbiased sample of its pixel
+        (``sums`` still hold the offsets' whole values), the weighted pairs
+        are. ``None`` for the replay shift, whose weights are all ½.
     """
 
     sums: np.ndarray
     camera_emission: np.ndarray
     albedo: np.ndarray
     nonfinite: int
+    replayed: np.ndarray | None = None
+    pairs: np.ndarray | None = None
 
 
 def gradient_paths(width, height, offsets):
@@ -56,7 +75,7 @@ def gradient_paths(width, height, offsets):
     return width * height + sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS[offsets])
 
 
-def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
+def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="replay"):
     """Gradient-domain path samples: every base sample replayed at the neighbouring pixels, in one kernel.
 
     Base sample ``i`` of pixel ``p`` is
@@ -83,6 +102,9 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
         Any non-negative integer (:func:`~sparselt.rendering.mitsuba.launch.fold_seed`).
     offsets : {4, 2}
         Neighbours per base sample: ``+x, -x, +y, -y`` or ``+x, +y``.
+    shift : {'replay', 'reconnection'}
+        The shift map (:data:`SHIFT_MAPS`). ``'reconnection'`` needs the 4
+        neighbours (its weights are two-sided) and returns ``pairs``.
 
     Returns
     -------
@@ -93,10 +115,18 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
     """
     if offsets not in GRADIENT_SHIFTS:
         raise ValueError(f"offsets must be one of {sorted(GRADIENT_SHIFTS)}, got {offsets!r}")
+    if shift not in SHIFT_MAPS:
+        raise ValueError(f"shift must be one of {', '.join(SHIFT_MAPS)}, got {shift!r}")
+    if shift == "reconnection" and offsets != 4:
+        raise ValueError(f"the reconnection shift needs offsets=4 (its pairs are weighted from both sides), "
+                         f"got offsets={offsets}")
     spp = int(spp)
     if spp < 1:
         raise ValueError(f"spp must be >= 1, got {spp}")
     width, height = scene.width, scene.height
+    if shift == "reconnection":
+        return launch(lambda folded_seed: _reconnection_work(scene, layout, grid_shape, spp, folded_seed), seed,
+                      path_samples=spp * gradient_paths(width, height, offsets))
 
     def work(folded_seed):
         mi, dr = modules()
@@ -147,3 +177,70 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4):
                                nonfinite)
 
     return launch(work, seed, path_samples=spp * gradient_paths(width, height, offsets))
+
+
+def _reconnection_work(scene, layout, grid_shape, spp, folded_seed):
+    """:func:`sample_gradients` with the reconnection shift: one lane per base sample, its 4 offsets in the lane."""
+    mi, dr = modules()
+    width, height = scene.width, scene.height
+    shifts = GRADIENT_SHIFTS[4]
+    pixels = width * height
+    per_launch = max(1, min(spp, GRADIENT_LANE_LIMIT // (pixels * (1 + len(shifts)))))
+    names = ("sums", "albedo", "camera_emission", "replayed")
+    reductions = {name: np.zeros((pixels, 1 + len(shifts), 3)) for name in names}
+    pairs = np.zeros((pixels, len(shifts), 2, 3))
+    nonfinite = 0
+    for first in range(0, spp, per_launch):
+        count = min(per_launch, spp - first)
+        index = dr.arange(mi.UInt32, pixels * count)
+        samples_per_pixel = dr.opaque(mi.UInt32, count)
+        pixel = index // samples_per_pixel
+        sample_index = index % samples_per_pixel + dr.opaque(mi.UInt32, first)
+        film_width = dr.opaque(mi.Int32, width)
+        pixel_x = mi.Int32(pixel % mi.UInt32(film_width))
+        pixel_y = mi.Int32(pixel // mi.UInt32(film_width))
+        base_samples, _ = pss_vector(layout, grid_shape, seeded_generator(pixel, sample_index, folded_seed, 0),
+                                     mi.UInt32(pixel_x), mi.UInt32(pixel_y), (width, height))
+        base = split_path(scene, layout, base_samples)
+        base_value, finite = zero_nonfinite(base.value)
+        channels = {"sums": [base_value], "albedo": [base.albedo], "camera_emission": [base.camera_emission],
+                    "replayed": [dr.select(finite, base.before_bounce, 0.0)]}
+        pair_channels, bad = [], [~finite]
+        for dx, dy in shifts:
+            target_x, target_y = pixel_x + dx, pixel_y + dy
+            inside = (target_x >= 0) & (target_x < film_width) & (target_y >= 0) & (target_y < dr.opaque(mi.Int32,
+                                                                                                          height))
+            offset_samples, _ = pss_vector(layout, grid_shape, seeded_generator(pixel, sample_index, folded_seed, 0),
+                                           mi.UInt32(dr.select(inside, target_x, 0)),
+                                           mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
+            pair = shifted_pair(scene, layout, base, offset_samples, inside)
+            offset_finite = (_finite(pair.offset_value) & _finite(pair.weighted_base) & _finite(pair.weighted_offset)
+                             & finite & inside)
+            bad.append(inside & ~offset_finite)
+            keep = offset_finite
+            channels["sums"].append(dr.select(keep, pair.offset_value, 0.0))
+            channels["albedo"].append(dr.select(inside, pair.offset.albedo, 0.0))
+            channels["camera_emission"].append(dr.select(inside, pair.offset.camera_emission, 0.0))
+            channels["replayed"].append(dr.select(keep, pair.offset.before_bounce, 0.0))
+            pair_channels += [dr.select(keep, pair.weighted_base, 0.0), dr.select(keep, pair.weighted_offset, 0.0)]
+        flat = [value for name in names for value in channels[name]] + pair_channels
+        scalars = [component for value in flat for component in (value.x, value.y, value.z)]
+        dr.eval(scalars, bad)
+        reduced = [dr.block_sum(channel, count) for channel in scalars]
+        nonfinite += sum(int(np.count_nonzero(np.asarray(flag))) for flag in bad)
+        dr.eval(reduced)
+        values = stacked(reduced).reshape(pixels, -1, 3)
+        paths = 1 + len(shifts)
+        for position, name in enumerate(names):
+            reductions[name] += values[:, position * paths:(position + 1) * paths]
+        pairs += values[:, len(names) * paths:].reshape(pixels, len(shifts), 2, 3)
+    shape = (height, width, 1 + len(shifts), 3)
+    return GradientSamples(reductions["sums"].reshape(shape), reductions["camera_emission"].reshape(shape),
+                           reductions["albedo"].reshape(shape), nonfinite, reductions["replayed"].reshape(shape),
+                           pairs.reshape(height, width, len(shifts), 2, 3))
+
+
+def _finite(value):
+    """Lanes whose three channels are finite."""
+    _, dr = modules()
+    return dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)

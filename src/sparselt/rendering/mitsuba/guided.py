@@ -100,7 +100,7 @@ def render_guided(scene, layout, map_shape, tables, densities, spp, seed, *, mod
             density = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(densities, dtype=np.float32)), prefix)
 
         value, finite = zero_nonfinite(path_contribution(scene, layout, uniforms) / density, density > 0)
-        scale = 1.0 / int(spp)
+        scale = dr.opaque(mi.Float, 1.0 / int(spp))  # opaque: one kernel for every spp (a literal recompiles)
         if mode == "per-pixel":
             dr.eval(value, finite)
             sums = [dr.block_sum(channel, int(spp)) * scale for channel in (value.x, value.y, value.z)]

@@ -77,41 +77,89 @@ def path_contribution(scene, layout, samples, auxiliary=None):
             auxiliary["camera_emission"] = mi.Color3f(result)
 
     for index, plan in enumerate(layout.vertices, start=1):
-        active &= interaction.is_valid()
-        bsdf = interaction.bsdf(ray)
-
-        if plan.next_event:
-            light_sample = mi.Point2f(samples[f"light{index}_u"], samples[f"light{index}_v"])
-            active_light = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-            direction_sample, emitter_weight = world.sample_emitter_direction(interaction, light_sample, True,
-                                                                              active_light)
-            active_light &= direction_sample.pdf != 0.0
-            local_direction = interaction.to_local(direction_sample.d)
-            bsdf_value, bsdf_pdf = bsdf.eval_pdf(context, interaction, local_direction, active_light)
-            weight = dr.select(direction_sample.delta, 1.0, power_heuristic(direction_sample.pdf, bsdf_pdf))
-            result += dr.select(active_light, throughput * weight * bsdf_value * emitter_weight, 0.0)
-
-        direction = mi.Point2f(samples[f"bsdf{index}_u"], samples[f"bsdf{index}_v"])
-        bsdf_sample, bsdf_weight = bsdf.sample(context, interaction, samples[f"lobe{index}"], direction, active)
-        throughput = dr.select(active, throughput * bsdf_weight, 0.0)
-        active &= dr.max(throughput) > 0.0
-        ray = interaction.spawn_ray(interaction.to_world(bsdf_sample.wo))
-        next_interaction = world.ray_intersect(ray, active)
+        result, next_interaction, ray, throughput, active, bsdf_sample = vertex_step(
+            world, context, plan, index, samples, interaction, ray, throughput, active, result)
         if auxiliary is not None and index == 1:
             hit = active & next_interaction.is_valid()
             auxiliary["secondary_distance"] = dr.select(hit, next_interaction.t, dr.inf)
             auxiliary["secondary_diffuse"] = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Diffuse)
-
-        if plan.count_emission_hit:
-            emitter_sample = mi.DirectionSample3f(world, si=next_interaction, ref=interaction)
-            emission = emitter_sample.emitter.eval(next_interaction, active)
-            if plan.next_event:
-                delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
-                light_pdf = world.pdf_emitter_direction(interaction, emitter_sample, active & ~delta)
-                emission *= power_heuristic(bsdf_sample.pdf, light_pdf)
-            result += dr.select(active, throughput * emission, 0.0)
         interaction = next_interaction
     return result
+
+
+def vertex_step(world, context, plan, index, samples, interaction, ray, throughput, active, result):
+    """One vertex ``index`` of :func:`path_contribution`'s estimator, its contribution added to ``result``.
+
+    Next-event estimation with the vertex's light sample (where ``plan``
+    says so, :func:`next_event`), the BSDF sample, and the emission its ray
+    finds (:func:`emission_found`).
+
+    Returns
+    -------
+    tuple
+        ``(result, next_interaction, ray, throughput, active, bsdf_sample)``:
+        the running sum with this vertex's contribution, the BSDF-sampled
+        ray's hit, that ray, the throughput after the BSDF sample, the
+        lanes still alive, and the BSDF sample record.
+    """
+    mi, dr = modules()
+    active &= interaction.is_valid()
+    bsdf = interaction.bsdf(ray)
+    if plan.next_event:
+        result += next_event(world, context, bsdf, interaction, samples, index, throughput, active)
+    direction = mi.Point2f(samples[f"bsdf{index}_u"], samples[f"bsdf{index}_v"])
+    bsdf_sample, bsdf_weight = bsdf.sample(context, interaction, samples[f"lobe{index}"], direction, active)
+    throughput = dr.select(active, throughput * bsdf_weight, 0.0)
+    active &= dr.max(throughput) > 0.0
+    ray = interaction.spawn_ray(interaction.to_world(bsdf_sample.wo))
+    next_interaction = world.ray_intersect(ray, active)
+    if plan.count_emission_hit:
+        delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
+        emission = emission_found(world, plan, interaction, next_interaction, bsdf_sample.pdf, delta, active)
+        result += dr.select(active, throughput * emission, 0.0)
+    return result, next_interaction, ray, throughput, active, bsdf_sample
+
+
+def next_event(world, context, bsdf, interaction, samples, index, throughput, active):
+    """Next-event estimation at vertex ``index``: its light sample's contribution, weighted by the power heuristic
+    against BSDF sampling (Veach 1997, 9.2); 0 on lanes not ``active`` or on a delta BSDF."""
+    light = light_sample(world, bsdf, interaction, samples, index, active)
+    return light_contribution(context, bsdf, interaction, light, throughput)
+
+
+def light_sample(world, bsdf, interaction, samples, index, active):
+    """The emitter sample of vertex ``index`` (shadow ray traced): ``(direction sample, emitter weight, lanes it
+    lights)``. It depends on the vertex's position only, not on the direction the path arrived from."""
+    mi, _ = modules()
+    sample = mi.Point2f(samples[f"light{index}_u"], samples[f"light{index}_v"])
+    active_light = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+    direction_sample, emitter_weight = world.sample_emitter_direction(interaction, sample, True, active_light)
+    active_light &= direction_sample.pdf != 0.0
+    return direction_sample, emitter_weight, active_light
+
+
+def light_contribution(context, bsdf, interaction, light, throughput):
+    """The contribution of a :func:`light_sample` through ``bsdf`` at ``interaction`` (its ``wi``), with the power
+    heuristic weight against BSDF sampling."""
+    _, dr = modules()
+    direction_sample, emitter_weight, active_light = light
+    local_direction = interaction.to_local(direction_sample.d)
+    bsdf_value, bsdf_pdf = bsdf.eval_pdf(context, interaction, local_direction, active_light)
+    weight = dr.select(direction_sample.delta, 1.0, power_heuristic(direction_sample.pdf, bsdf_pdf))
+    return dr.select(active_light, throughput * weight * bsdf_value * emitter_weight, 0.0)
+
+
+def emission_found(world, plan, interaction, hit, bsdf_pdf, delta, active):
+    """The emission at ``hit`` towards ``interaction`` (its ``wi``), found by a BSDF-sampled ray of density
+    ``bsdf_pdf``: weighted by the power heuristic against next-event estimation where ``plan`` does it and the
+    sample was not ``delta``, with weight one otherwise (Veach 1997, 9.2). Not multiplied by a throughput."""
+    mi, _ = modules()
+    emitter_sample = mi.DirectionSample3f(world, si=hit, ref=interaction)
+    emission = emitter_sample.emitter.eval(hit, active)
+    if plan.next_event:
+        light_pdf = world.pdf_emitter_direction(interaction, emitter_sample, active & ~delta)
+        emission *= power_heuristic(bsdf_pdf, light_pdf)
+    return emission
 
 
 def _record_primary(sensor, auxiliary, interaction, samples, layout):

@@ -21,7 +21,7 @@ import numpy as np
 from .integrand import path_contribution, zero_nonfinite
 from .launch import launch
 from .pixels import pixel_lanes
-from .readback import count_false, stacked
+from .readback import stacked
 from .runtime import modules
 
 #: Per-pixel statistics :func:`sample_pixel_statistics` reduces, and their reduction.
@@ -66,9 +66,13 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     :func:`~sparselt.rendering.mitsuba.pixels.sample_pixels` (the same
     random numbers): ``spp`` per film pixel, or the explicit ``lanes``
     ``(pixels, sample_indices)`` sorted by pixel. Nothing per sample leaves
-    the kernel but the sums of an explicit-lanes pass, which are reduced in
-    numpy (in a fixed order: the same seed gives the same bytes; the
-    kernel's atomic additions would not).
+    the kernel: a uniform pass reduces each pixel's ``spp`` consecutive
+    lanes with a block reduction; an explicit-lanes pass scatters each lane
+    into its pixel's blocks of :data:`EXPLICIT_BLOCK` slots (padded with the
+    reduction's identity), block-reduces them in the kernel and merges a
+    pixel's few blocks on the host (:func:`explicit_slots`). Both are in a
+    fixed order: the same seed gives the same bytes (atomic additions would
+    not).
 
     Parameters
     ----------
@@ -78,10 +82,11 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     seed : int
         Any non-negative integer (:func:`~sparselt.rendering.mitsuba.launch.fold_seed`).
     names : tuple of str
-        Keys of :data:`PIXEL_STATISTICS`.
+        Keys of :data:`PIXEL_STATISTICS`; only these are computed.
     spp : int, optional
         Samples per pixel of every film pixel (one of ``spp``, ``lanes``).
     lanes : tuple of two int arrays, optional
+        ``(pixels, sample_indices)``, sorted by pixel.
 
     Returns
     -------
@@ -90,6 +95,12 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
         film pixel (pixels without samples hold the reduction's identity).
     nonfinite : int
         Samples that were NaN or infinite (counted as 0).
+
+    Raises
+    ------
+    ValueError
+        An unknown name, neither or both of ``spp`` and ``lanes``, or lanes
+        not sorted by pixel.
     """
     unknown = sorted(set(names) - set(PIXEL_STATISTICS))
     if unknown:
@@ -97,9 +108,11 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     if (spp is None) == (lanes is None):
         raise ValueError("give exactly one of spp and lanes")
     pixels = scene.width * scene.height
+    if lanes is not None:
+        slots = explicit_slots(lanes[0], EXPLICIT_BLOCK)
 
     def work(folded_seed):
-        _, dr = modules()
+        mi, dr = modules()
         _, samples, _ = pixel_lanes(layout, grid_shape, spp, folded_seed, 0, pixels, (scene.width, scene.height),
                                     lanes)
         recorded = {}
@@ -107,29 +120,88 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
         quantities = {name: statistic_quantity(name, value, recorded) for name in names}
         flat = {name: [quantity.x, quantity.y, quantity.z] if dr.size_v(quantity) == 3 else [quantity]
                 for name, quantity in quantities.items()}
-        dr.eval(finite, *[channel for channels in flat.values() for channel in channels])
-        nonfinite = count_false(finite)
-        results = {}
+        operations = {"sum": dr.ReduceOp.Add, "min": dr.ReduceOp.Min, "max": dr.ReduceOp.Max}
         if lanes is None:
-            operations = {"sum": dr.ReduceOp.Add, "min": dr.ReduceOp.Min, "max": dr.ReduceOp.Max}
-            reduced = {name: [dr.block_reduce(operations[PIXEL_STATISTICS[name]], channel, int(spp))
-                              for channel in channels] for name, channels in flat.items()}
-            dr.eval(*[channel for channels in reduced.values() for channel in channels])
-            for name, channels in reduced.items():
-                results[name] = stacked(channels)
-            return results, nonfinite
-        pixel_ids = np.ascontiguousarray(lanes[0], dtype=np.int64)
-        starts = np.flatnonzero(np.concatenate(([True], pixel_ids[1:] != pixel_ids[:-1])))
-        owners = pixel_ids[starts]
-        for name, channels in flat.items():
-            reduction = PIXEL_STATISTICS[name]
-            per_lane = stacked(channels)
-            operation, identity = REDUCTIONS[reduction]
-            result = np.full((pixels,) + per_lane.shape[1:], identity)
-            if owners.size:
-                result[owners] = operation.reduceat(per_lane, starts, axis=0)
-            results[name] = result
-        return results, nonfinite
+            block = int(spp)
+        else:  # each lane into its slot: a pixel's lanes fill whole blocks, the rest of a block is the identity
+            block = slots.block
+            slot = mi.UInt32(slots.slot)
+            padded = {}
+            for name, channels in flat.items():
+                identity = REDUCTIONS[PIXEL_STATISTICS[name]][1]
+                padded[name] = [dr.full(mi.Float, identity, slots.block_count * block) for _ in channels]
+                for target, channel in zip(padded[name], channels):
+                    dr.scatter(target, channel, slot)
+            flat = padded
+        dr.eval(finite, *[channel for channels in flat.values() for channel in channels])  # the one path kernel
+        nonfinite = dr.count(~finite)
+        reduced = {name: [dr.block_reduce(operations[PIXEL_STATISTICS[name]], channel, block, mode="evaluated")
+                          for channel in channels] for name, channels in flat.items()}
+        dr.eval(nonfinite, *[channel for channels in reduced.values() for channel in channels])
+        results = {name: stacked(channels) for name, channels in reduced.items()}
+        if lanes is not None:
+            results = {name: slots.merge(value, PIXEL_STATISTICS[name], pixels) for name, value in results.items()}
+        return results, int(nonfinite[0])
 
     drawn = pixels * int(spp) if lanes is None else int(np.size(lanes[0]))
     return launch(work, seed, path_samples=drawn)
+
+
+#: Slots per block of an explicit-lanes pass (:func:`sample_pixel_statistics`): a pixel's lanes fill
+#: ``ceil(count / EXPLICIT_BLOCK)`` blocks, reduced in the kernel; the host merges each pixel's blocks.
+EXPLICIT_BLOCK = 16
+
+
+class ExplicitSlots:
+    """Where each lane of an explicit-lanes pass goes: whole blocks per pixel (see :func:`explicit_slots`).
+
+    Attributes
+    ----------
+    slot : ndarray of uint32
+        Each lane's slot in the padded array (``block_count * block`` slots).
+    block : int
+        Slots per block.
+    block_count : int
+    owners : ndarray of int64
+        The pixel of each run of lanes (in lane order).
+    first_blocks : ndarray of int64
+        Each run's first block.
+    """
+
+    def __init__(self, slot, block, block_count, owners, first_blocks):
+        self.slot, self.block, self.block_count = slot, block, block_count
+        self.owners, self.first_blocks = owners, first_blocks
+
+    def merge(self, partial, reduction, pixels):
+        """Per-pixel reductions from the per-block ones ``partial`` (``(block_count, ...)``), over ``pixels``."""
+        operation, identity = REDUCTIONS[reduction]
+        result = np.full((pixels,) + partial.shape[1:], identity)
+        if self.owners.size:
+            result[self.owners] = operation.reduceat(partial, self.first_blocks, axis=0)
+        return result
+
+
+def explicit_slots(pixel_ids, block):
+    """The padded block layout of explicit lanes ``pixel_ids`` (sorted by pixel): an :class:`ExplicitSlots`.
+
+    Lane ``i`` of a run of ``n`` lanes of one pixel starting at lane ``s``
+    goes to slot ``b * block + (i - s)``, ``b`` the run's first block; the
+    run owns ``ceil(n / block)`` blocks. A block reduction then sums (or
+    takes the minimum of) each block's lanes in a fixed order, and a pixel's
+    blocks are merged on the host in block order.
+
+    Raises
+    ------
+    ValueError
+        ``pixel_ids`` not sorted (a pixel's lanes must be consecutive).
+    """
+    pixel_ids = np.ascontiguousarray(pixel_ids, dtype=np.int64)
+    if pixel_ids.size and np.any(pixel_ids[1:] < pixel_ids[:-1]):
+        raise ValueError("explicit lanes must be sorted by pixel")
+    starts = np.flatnonzero(np.concatenate(([True], pixel_ids[1:] != pixel_ids[:-1]))) if pixel_ids.size else \
+        np.zeros(0, dtype=np.int64)
+    counts = np.diff(np.append(starts, pixel_ids.size))
+    blocks = -(-counts // block)
+    first_blocks = np.cumsum(blocks) - blocks
+    slot = np.arange(pixel_ids.size, dtype=np.int64) + np.repeat(first_blocks * block - starts, counts)
+    return ExplicitSlots(slot.astype(np.uint32), int(block), int(blocks.sum()), pixel_ids[starts], first_blocks)

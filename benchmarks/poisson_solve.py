@@ -1,0 +1,91 @@
+"""The L1 gradient-domain solve: plain ADMM (the first version) against the defaults (issue 23's L1 part).
+
+In the same run, on a noisy problem like a 16-spp render's (a textured image,
+Gaussian noise on the primal and the gradients, 1% outlying gradients), kernels
+warmed first, medians of ``--repeats`` runs after a warm-up run, interleaved
+so that a slow spell of the shared machine hits both alike:
+
+- ``old``: plain ADMM as gradient-l1 first ran it (primal start, no
+  relaxation, float64; :data:`~sparselt.recovery.poisson.PLAIN_ADMM`), 50
+  iterations at most, tolerance 1e-3;
+- ``new``: :func:`~sparselt.recovery.poisson.screened_poisson_l1`'s defaults
+  (L2 start, relaxation 1.6, float32 ``I`` step; Boyd et al. 2011, 3.4.3),
+  the same budget.
+
+Printed per size: each one's seconds and iterations, the ratio old / new, and
+the objective each reached relative to a long reference run (``--reference``
+plain iterations, 1500 by default; Kettunen et al. 2015's L1 objective).
+
+    .venv/bin/python benchmarks/poisson_solve.py [--repeats 5] [--reference 1500] [--large]
+
+``--large`` adds 1024x576 (its reference run alone takes tens of seconds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+from sparselt import kernels
+from sparselt.recovery.poisson import PLAIN_ADMM, forward_differences, l1_objective, screened_poisson_l1
+
+BUDGET = {"max_iterations": 50, "tolerance": 1e-3}  # gradient-l1's defaults
+
+
+def noisy_problem(height, width, seed=0):
+    """A smooth image times a pixel-rate texture, with render-like noise on the primal and the gradients."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:height, 0:width] / max(height, width)
+    light = 0.5 + 0.4 * np.sin(6 * x)[..., None] * np.cos(4 * y)[..., None] * np.array([1.0, 0.8, 0.6])
+    texture = np.where((np.arange(height)[:, None] // 2 + np.arange(width)[None, :] // 2) % 2, 1.0, 0.5)
+    image = light * texture[..., None]
+    primal = image + 0.2 * image * rng.standard_normal(image.shape)
+    gradients = [g + 0.05 * rng.standard_normal(g.shape) for g in forward_differences(image)]
+    outliers = rng.random(gradients[0].shape) < 0.01
+    gradients[0][outliers] += 2.0 * rng.standard_normal(int(outliers.sum()))
+    return primal, gradients[0], gradients[1]
+
+
+def _timed(function):
+    start = time.perf_counter()
+    result = function()
+    return time.perf_counter() - start, result
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--reference", type=int, default=1500)
+    parser.add_argument("--large", action="store_true", help="add 1024x576")
+    arguments = parser.parse_args()
+    sizes = [(128, 128), (256, 256)] + ([(576, 1024)] if arguments.large else [])
+    kernels.warm_up()
+    configurations = {"old": dict(PLAIN_ADMM, **BUDGET), "new": dict(BUDGET)}
+    print(f"L1 screened Poisson (ADMM), budget {BUDGET}, medians of {arguments.repeats} after a warm-up, "
+          f"reference: {arguments.reference} plain iterations")
+    for height, width in sizes:
+        problem = noisy_problem(height, width)
+        reference = l1_objective(screened_poisson_l1(*problem, **dict(PLAIN_ADMM, max_iterations=arguments.reference,
+                                                                      tolerance=1e-15)).estimate, *problem)
+        times = {name: [] for name in configurations}
+        results = {}
+        for name, options in configurations.items():
+            screened_poisson_l1(*problem, **options)  # warm-up
+        for _ in range(arguments.repeats):
+            for name, options in configurations.items():
+                seconds, results[name] = _timed(lambda: screened_poisson_l1(*problem, **options))
+                times[name].append(seconds)
+        median = {name: statistics.median(values) for name, values in times.items()}
+        print(f"  {width}x{height}x3:")
+        for name in configurations:
+            gap = l1_objective(results[name].estimate, *problem) / reference - 1
+            print(f"    {name}: {median[name]:.4f} s (min {min(times[name]):.4f}), {results[name].iterations} "
+                  f"iterations ({results[name].stop_reason}), objective {gap:+.2e} relative to the reference")
+        print(f"    old / new: {median['old'] / median['new']:.2f}x")
+
+
+if __name__ == "__main__":
+    main()
