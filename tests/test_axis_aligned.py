@@ -28,8 +28,9 @@ import numpy as np
 import pytest
 
 from sparselt.analysis.metrics import luminance_ratio, relative_mean_squared_error
-from sparselt.filters.axis_aligned import (DOF_WIDTH, MINIMUM_SIGMA, axis_aligned_filter, circle_of_confusion,
-                                           depth_range, dof_filter_width, indirect_filter_width)
+from sparselt.filters.axis_aligned import (DOF_WIDTH, MINIMUM_SIGMA, SHADOW_WIDTH_DIVISOR, axis_aligned_filter,
+                                           circle_of_confusion, depth_range, dof_filter_width, indirect_filter_width,
+                                           shadow_bandlimit, shadow_filter_width, shadow_slope)
 from sparselt.images import luminance
 from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
 from sparselt.rendering.layout import path_layout
@@ -618,9 +619,15 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
     grid, spp, pixels = (12, 10, 4, 4), 6, 120
     names = tuple(PIXEL_STATISTICS)
     values, _, _, auxiliary = scene.sample_pixels(layout, grid, spp, 5, auxiliary=(
-        "primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance", "secondary_diffuse"))
+        "primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance", "secondary_diffuse", "direct_light",
+        "light_distance", "occluder_distance", "light_size"))
     depth, diffuse = auxiliary["primary_depth"], auxiliary["secondary_diffuse"]
-    per_sample = {"rgb": values, "rgb_squared": values.astype(np.float32) ** 2,
+    slope = shadow_slope(auxiliary["light_distance"], auxiliary["occluder_distance"])
+    blocked = np.isfinite(slope)
+    per_sample = {"direct_rgb": auxiliary["direct_light"], "least_shadow_slope": slope,
+                  "greatest_shadow_slope": np.where(blocked, slope, -np.inf),
+                  "least_penumbra": np.where(blocked, auxiliary["light_size"] * np.where(blocked, slope, 0.0), np.inf),
+                  "rgb": values, "rgb_squared": values.astype(np.float32) ** 2,
                   "diffuse_rgb": np.where(diffuse[:, None], values, 0.0), "albedo": auxiliary["diffuse_albedo"],
                   "normal": auxiliary["primary_normal"], "depth": np.where(np.isfinite(depth), depth, 0.0),
                   "hits": np.isfinite(depth).astype(np.float64), "nearest": depth, "farthest": depth,
@@ -680,3 +687,129 @@ def test_explicit_lanes_must_be_sorted_by_pixel():
     layout = path_layout("indirect", 3, thin_lens=False)
     with pytest.raises(ValueError, match="sorted by pixel"):
         scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([2, 1]), np.array([0, 0])))
+
+
+# --------------------------------------------------------------------------- factored soft-shadow filtering (issue 37)
+
+
+def test_shadow_slope_and_bandlimit_by_hand():
+    """s = d1 / d2 - 1 and Omega_x = 1 / (sigma_l s) (Mehta et al. 2012): hand-computed cases; no blocker: no
+    shadow (slope inf, bandlimit 0); a larger light or a blocker nearer the light: a lower bandlimit."""
+    slope = shadow_slope([2.0, 2.0, 3.0, 2.0], [1.0, 1.5, 1.0, np.inf])
+    np.testing.assert_allclose(slope[:3], [1.0, 1.0 / 3.0, 2.0])
+    assert np.isinf(slope[3])
+    np.testing.assert_allclose(shadow_bandlimit(0.5, slope[:3]), [2.0, 6.0, 1.0])
+    assert shadow_bandlimit(0.5, np.inf) == 0.0
+    assert shadow_bandlimit(0.0, 1.0) == np.inf  # a point light: a hard shadow
+    # A larger light (same geometry), and a blocker nearer the light (d2 smaller): both narrow the bandlimit.
+    assert shadow_bandlimit(1.0, 1.0) < shadow_bandlimit(0.5, 1.0)
+    assert shadow_bandlimit(0.5, shadow_slope(2.0, 0.5)) < shadow_bandlimit(0.5, shadow_slope(2.0, 1.5))
+    with pytest.raises(ValueError, match="non-negative"):
+        shadow_bandlimit(-1.0, 1.0)
+
+
+def test_shadow_filter_width_by_hand():
+    """beta = max(sigma_l s2, 1 / Omega_pix) / 3 on the receiver, beta P / z pixels; no blocker, no hit or a width
+    below MINIMUM_SIGMA (the pixel-rate cap): not filtered; larger penumbra scale: wider filter."""
+    pixels_per_tangent = 100.0
+    penumbra = np.array([[0.3, 0.6, np.inf, 0.3, 0.001]])
+    depth = np.array([[2.0, 2.0, 2.0, np.inf, 2.0]])
+    sigma, sigma_world = shadow_filter_width(penumbra, depth, pixels_per_tangent)
+    # 0.3 / 3 = 0.1 scene units at depth 2: 0.1 * 100 / 2 = 5 pixels; 0.6 -> 10 pixels.
+    np.testing.assert_allclose(sigma[0, :2], [5.0, 10.0])
+    np.testing.assert_allclose(sigma_world[0, :2], [0.1, 0.2])
+    assert np.all(sigma[0, 2:] == 0) and np.all(sigma_world[0, 2:] == 0)
+    # The pixel-rate cap: a sharp shadow's width is a third of a pixel, below MINIMUM_SIGMA.
+    assert 1.0 / SHADOW_WIDTH_DIVISOR < MINIMUM_SIGMA
+
+
+def _soft_shadow_samples(spp=4, seed=3):
+    from sparselt.rendering.layout import path_layout as layout_of
+
+    scene = _loaded(get_scene("soft-shadows"), (16, 12))
+    layout = layout_of("path", 3, thin_lens=False)
+    grid = (16, 12) + (4,) * (len(layout.dimensions) - 2)
+    return scene, layout, grid
+
+
+def test_occluder_statistics_on_the_soft_shadow_scene_match_a_per_sample_computation():
+    """On soft-shadows (one 2.0 x 1.2 area light): light_size is sqrt(A) / 2 wherever a light was sampled, the
+    blocker lies on the shadow segment (0 < d2 < d1), some samples are blocked, and the in-kernel per-pixel
+    statistics equal the reductions of the per-sample quantities computed here; the direct part is part of each
+    sample's value, and the value is bit for bit the same with and without auxiliary outputs."""
+    scene, layout, grid = _soft_shadow_samples()
+    spp, pixels = 4, 16 * 12
+    plain, _, _ = scene.sample_pixels(layout, grid, spp, 3)
+    values, _, _, auxiliary = scene.sample_pixels(layout, grid, spp, 3, auxiliary=(
+        "direct_light", "light_distance", "occluder_distance", "light_size"))
+    assert plain.tobytes() == values.tobytes()
+    distance, occluder, size = (auxiliary[name] for name in ("light_distance", "occluder_distance", "light_size"))
+    blocked = np.isfinite(occluder)
+    assert 0.05 < blocked.mean() < 0.95
+    assert np.all((occluder[blocked] > 0) & (occluder[blocked] < distance[blocked]))
+    np.testing.assert_allclose(size[np.isfinite(distance)], math.sqrt(2.0 * 1.2) / 2.0, rtol=1e-5)
+    assert np.all(auxiliary["direct_light"] <= values + 1e-5)
+    names = ("rgb", "direct_rgb", "least_shadow_slope", "greatest_shadow_slope", "least_penumbra")
+    statistics, _ = scene.sample_pixel_statistics(layout, grid, 3, names, spp=spp)
+    slope = np.where(blocked, distance / np.where(blocked, occluder, 1.0) - 1.0, np.inf).reshape(pixels, spp)
+    np.testing.assert_allclose(statistics["least_shadow_slope"], slope.min(axis=1), rtol=1e-5)
+    np.testing.assert_allclose(statistics["greatest_shadow_slope"],
+                               np.where(np.isfinite(slope), slope, -np.inf).max(axis=1), rtol=1e-5)
+    np.testing.assert_allclose(statistics["least_penumbra"], (size.reshape(pixels, spp) * slope).min(axis=1),
+                               rtol=1e-5)
+    np.testing.assert_allclose(statistics["direct_rgb"], auxiliary["direct_light"].reshape(pixels, spp, 3).sum(
+        axis=1), rtol=1e-5, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def soft_shadow_dof_context():
+    """soft-shadows behind a nearly pinhole thin lens: most pixels in focus, penumbrae on the floor."""
+    scene = _loaded(get_scene("soft-shadows").with_lens(0.005, 3.0), (24, 16))
+    return _context(scene, "dof", 3, (24, 16))
+
+
+def test_factoring_none_is_bit_identical_and_direct_changes_only_factored_pixels(soft_shadow_dof_context):
+    """factoring=none gives the bytes of the method without the option (the same kernels and statistics);
+    factoring=direct changes only the pixels it factors, which exist on soft-shadows with a nearly pinhole lens."""
+    context = soft_shadow_dof_context
+    default = _run("aaf-dof", context, 8, 2)
+    none = _run("aaf-dof:factoring=none", context, 8, 2)
+    direct = _run("aaf-dof:factoring=direct", context, 8, 2)
+    assert default.image.tobytes() == none.image.tobytes()
+    assert direct.path_samples == none.path_samples
+    assert direct.details["factored_pixel_fraction"] > 0.05
+    changed = np.any(direct.image != none.image, axis=-1)
+    assert changed.any() and changed.mean() <= direct.details["factored_pixel_fraction"] + 1e-12
+
+
+def test_direct_part_plus_the_rest_is_the_pixel_value(soft_shadow_dof_context, monkeypatch):
+    """With the filter replaced by the identity, factoring=direct returns the pixel means exactly where it
+    factors: the demodulated direct light modulated back plus the rest of the pixel's light is its value."""
+    import sparselt.methods.axis_aligned as module
+
+    def identity(image, sigma, **_):
+        return np.asarray(image, dtype=np.float32)
+
+    monkeypatch.setattr(module, "axis_aligned_filter", identity)
+    context = soft_shadow_dof_context
+    method = get_method("aaf-dof:factoring=direct", grid_shape=context.grid_shape)
+    statistics = module.PixelStatistics((16, 24))
+    names = method.statistics + method.pilot_statistics
+    reduced, _ = context.scene.sample_pixel_statistics(context.layout, context.grid_shape, 4, names, spp=6)
+    statistics.add(reduced, 6)
+    image, _, details = method.finish(context, method.options, statistics)
+    assert details["factored_pixel_fraction"] > 0.05
+    means = statistics.mean("rgb")
+    np.testing.assert_allclose(image, means.astype(np.float32), rtol=1e-5, atol=1e-6)
+
+
+def test_factored_aaf_dof_keeps_the_method_contract(soft_shadow_dof_context):
+    """aaf-dof:factoring=direct under the contract every method keeps (tests/test_method_contract.py runs the
+    default options): counted samples, phases adding up to the wall time, determinism, options round trip."""
+    from sparselt.methods.contract import check_method
+
+    method = get_method("aaf-dof:factoring=direct", grid_shape=soft_shadow_dof_context.grid_shape)
+    report = check_method(method, soft_shadow_dof_context, Budget(spp=4, seed=3))
+    assert report["result"].image.shape == (16, 24, 3)
+    assert report["drawn"] >= 16 * 24 * 4
+    assert report["result"].details["factoring"] == "direct"

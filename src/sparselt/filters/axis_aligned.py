@@ -32,6 +32,32 @@ than the diffuse transfer's bandlimit ``\Omega_h`` (about 2.8, Mehta et al.
 shortest secondary-ray length among the pixel's diffuse-lobe samples.
 The width on the film is ``\sigma_\mathrm{world} P / d`` at camera depth ``d``.
 
+**Soft shadows** (Mehta et al. 2012, 3-4; factored for in-focus pixels as in
+Mehta et al. 2014, 4). A receiver point ``x`` at distance ``d_1`` from a
+planar light, a light point ``y`` and a blocker at distance ``d_2`` from the
+light: the shadow ray crosses the blocker's plane at
+``(d_2 / d_1)(x + s y)`` with the slope ``s = d_1 / d_2 - 1``, so the
+occlusion ``g(x + s y)`` has its spectrum on the line ``\Omega_y = s\,\Omega_x``.
+The light, modelled as a Gaussian of standard deviation ``\sigma_l`` (its
+effective width ``2 \sigma_l`` the light's side: ``\sigma_l = \sqrt{A} / 2``),
+is bandlimited to ``\Omega_l^* = 1 / \sigma_l``; integrating over the light
+therefore bandlimits the shadow on the receiver to
+``\Omega_x = \Omega_l^* / s``. Over a pixel's blocked samples the spectrum is
+a double wedge between the slopes ``s_1 = \max s`` and ``s_2 = \min s``
+(``d_2`` largest: the blocker nearest the receiver, the sharpest shadow); the
+filter keeps the widest spatial band, ``\Omega_x^f = \min(1 / (\sigma_l s_2),
+\Omega_\mathrm{pix})``, capped at the pixel's own rate, and its width is
+``\beta = 1 / (k\,\Omega_x^f)`` with ``k = 3`` (Mehta et al. 2012, eq. for
+``\beta``: ``\beta = \frac{1}{k} \max(\sigma_l s_2, 1 / \Omega_\mathrm{pix})``),
+in scene units on the receiver; ``\beta P / z`` pixels at camera depth ``z``.
+A larger light or a blocker nearer the light (larger ``s``) gives a lower
+bandlimit and a wider filter. Where no sample is blocked there is no shadow
+to bandlimit, and where the width is below :data:`MINIMUM_SIGMA` (the pixel
+rate's cap gives at most a third of a pixel) the pixel is not filtered. The
+filtered quantity is the direct lighting demodulated by the first hit's
+albedo (the light's part that the shadow analysis describes); the rest of
+the pixel's light is added unfiltered.
+
 **The filter width.** A Gaussian of standard deviation ``sigma`` has the
 response ``exp(-sigma^2 omega^2 / 2)``; we choose the widest Gaussian whose
 response is still 1/2 at the bandlimit: ``sigma = sqrt(2 ln 2) / Omega``
@@ -82,6 +108,8 @@ DOF_WIDTH = HALF_RESPONSE / DISC_FIRST_ZERO
 DIFFUSE_BANDLIMIT = 2.8
 #: Below this width (pixels) the pixel's box filter is narrower than the analysis's: the pixel is not filtered.
 MINIMUM_SIGMA = 0.5
+#: Mehta et al. (2012): the soft-shadow filter's width is 1 / (SHADOW_WIDTH_DIVISOR * its bandlimit) (``k``).
+SHADOW_WIDTH_DIVISOR = 3.0
 #: The window spans this many standard deviations on each side.
 WINDOW_SIGMAS = 3.0
 
@@ -192,6 +220,87 @@ def indirect_filter_width(minimum_distance, pixel_depth, pixels_per_tangent, *, 
     usable = np.isfinite(sigma_pixels) & (depth > 0) & np.isfinite(depth)
     sigma_pixels = np.where(usable, sigma_pixels, 0.0)
     return np.where(sigma_pixels < MINIMUM_SIGMA, 0.0, sigma_pixels), np.where(usable, sigma_world, 0.0)
+
+
+def shadow_slope(light_distance, occluder_distance):
+    """The slope ``s = d1 / d2 - 1`` of a blocked shadow ray (Mehta et al. 2012, 3; module docstring).
+
+    Parameters
+    ----------
+    light_distance : array_like
+        ``d1``, receiver to light point.
+    occluder_distance : array_like
+        ``d2``, light point to blocker; ``inf`` where the ray is not blocked.
+
+    Returns
+    -------
+    ndarray of float64
+        ``s`` (positive for a blocker between receiver and light); ``inf``
+        where not blocked (no shadow: its bandlimit ``1 / (sigma_l s)`` is 0).
+    """
+    distance = np.asarray(light_distance, dtype=np.float64)
+    occluder = np.asarray(occluder_distance, dtype=np.float64)
+    blocked = np.isfinite(occluder) & np.isfinite(distance) & (occluder > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(blocked, distance / np.where(blocked, occluder, 1.0) - 1.0, np.inf)
+
+
+def shadow_bandlimit(light_size, slope):
+    """Spatial bandlimit on the receiver of a soft shadow, ``Omega_x = 1 / (sigma_l s)`` (Mehta et al. 2012).
+
+    Parameters
+    ----------
+    light_size : array_like
+        ``sigma_l``, the light's Gaussian standard deviation (``sqrt(A) / 2``).
+    slope : array_like
+        :func:`shadow_slope` (``inf``: not blocked, bandlimit 0).
+
+    Returns
+    -------
+    ndarray of float64
+        Angular frequency per scene unit; ``inf`` for a point light (a hard shadow).
+    """
+    size = np.asarray(light_size, dtype=np.float64)
+    slope = np.asarray(slope, dtype=np.float64)
+    if np.any(size < 0) or np.any(slope < 0):
+        raise ValueError("light sizes and shadow slopes must be non-negative")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        penumbra = size * slope
+        return np.where(np.isinf(slope), 0.0, np.where(penumbra > 0, 1.0 / np.where(penumbra > 0, penumbra, 1.0),
+                                                        np.inf))
+
+
+def shadow_filter_width(least_penumbra, pixel_depth, pixels_per_tangent):
+    """Per-pixel Gaussian width of the soft-shadow filter (Mehta et al. 2012; module docstring).
+
+    Parameters
+    ----------
+    least_penumbra : ndarray, shape (height, width)
+        ``min sigma_l s`` over the pixel's blocked light samples (``inf``
+        where none was blocked): ``sigma_l s_2`` of the pixel's double wedge.
+    pixel_depth : ndarray, shape (height, width)
+        Camera-space depth of the pixel's receiver (``inf`` for the environment).
+    pixels_per_tangent : float
+
+    Returns
+    -------
+    sigma_pixels : ndarray, shape (height, width)
+        ``beta P / z`` with ``beta = max(sigma_l s_2, 1 / Omega_pix) / k``,
+        ``Omega_pix = P / z`` the pixel rate on the receiver; 0 where no
+        sample was blocked, nothing was hit, or the width is below
+        :data:`MINIMUM_SIGMA`.
+    sigma_world : ndarray, shape (height, width)
+        ``beta`` in scene units on the receiver (0 where not filtered): the
+        depth guide's tolerance.
+    """
+    penumbra = np.asarray(least_penumbra, dtype=np.float64)
+    depth = np.asarray(pixel_depth, dtype=np.float64)
+    usable = np.isfinite(penumbra) & (penumbra >= 0) & np.isfinite(depth) & (depth > 0)
+    pixel_size = np.where(usable, depth, 1.0) / pixels_per_tangent  # 1 / Omega_pix, scene units
+    sigma_world = np.where(usable, np.maximum(np.where(usable, penumbra, 0.0), pixel_size), 0.0) / SHADOW_WIDTH_DIVISOR
+    sigma_pixels = np.where(usable, sigma_world / pixel_size, 0.0)
+    filtered = sigma_pixels >= MINIMUM_SIGMA
+    return np.where(filtered, sigma_pixels, 0.0), np.where(filtered, sigma_world, 0.0)
 
 
 def gaussian_taps(sigma, maximum_radius):

@@ -26,6 +26,23 @@ pure neighbour), its tolerance the pixel's own width (at least one pixel): a nei
 indistinguishable after filtering, one that differs by more is a surface
 across a depth discontinuity. The depths decide, not the sample positions.
 
+``aaf-dof:factoring=direct`` (Mehta et al. 2012 for the analysis, factored as
+in Mehta et al. 2014). In-focus pixels (defocus width below
+:data:`IN_FOCUS_WIDTH`) are not filtered by the defocus analysis; where some
+of their samples' shadow rays were blocked, the soft-shadow analysis
+(:func:`~sparselt.filters.axis_aligned.shadow_filter_width`: ``beta =
+sigma_l s_2 / 3`` from the light's size and the least slope ``d1 / d2 - 1``
+of the pixel's blocked light samples, capped at the pixel rate) gives their
+first vertex's direct lighting a width. That part, demodulated by the pixel's
+mean first-hit albedo (every sample's, as the direct light), is filtered with
+it (guides: camera depth with the width on the receiver as tolerance, and the
+shading normal), modulated back, and the rest of the pixel's light is added
+unfiltered. Pixels without a blocked sample, with a width below
+half a pixel or without a diffuse albedo are left as ``factoring=none``
+leaves them; the allocation is the same (no extra samples). The
+per-sample inputs (the direct light, ``d1``, ``d2``, the light's size) are
+reduced in the sampling kernel as the other statistics are.
+
 ``aaf-indirect`` (Mehta et al. 2013). Factored by the lobe the first vertex
 sampled: samples whose secondary ray came from a diffuse lobe carry the
 diffuse indirect light, which the analysis bandlimits (``Omega_h / z_min``);
@@ -68,7 +85,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..cell_statistics import variance_from_sums
-from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, dof_filter_width, gaussian_taps, indirect_filter_width)
+from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, dof_filter_width,
+                                    gaussian_taps, indirect_filter_width, shadow_filter_width)
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .preconditions import ThinLens
 from .options import MethodOptions, option
@@ -101,7 +119,16 @@ class AxisAlignedOptions(MethodOptions):
 
 @dataclass(frozen=True)
 class AafDofOptions(AxisAlignedOptions):
-    """``aaf-dof``: the shared options only."""
+    """``aaf-dof``: the shared options and the factoring of in-focus pixels."""
+
+    factoring: str = option("none", choices=("direct", "none"),
+                            help="direct: pixels in focus (defocus width below one pixel) whose samples' shadow rays "
+                                 "were blocked filter their albedo-demodulated direct lighting with the soft-shadow "
+                                 "width (Mehta et al. 2012; factored as in Mehta et al. 2014); none: they are not "
+                                 "filtered")
+    normal_tolerance: float = option(0.3, minimum=0.0, minimum_inclusive=False,
+                                     help="tolerance of the shading-normal guide of the factored direct-light filter "
+                                          "(unit normals)")
 
 
 @dataclass(frozen=True)
@@ -345,16 +372,46 @@ def _lens_arguments(context):
     return lens["aperture_radius"], lens["focus_distance"], lens["pixels_per_tangent"]
 
 
+#: Statistics ``aaf-dof`` gathers in every pass, and in the pilot alone, with ``factoring="direct"``.
+#: The albedo comes from every sample, as the direct light does (a pilot-only albedo demodulated a pixel's direct
+#: light by a few of its samples' reflectance: at texture edges that ratio was off, and the filter carried it over).
+FACTORED_STATISTICS = ("direct_rgb", "albedo", "least_penumbra")
+FACTORED_PILOT_STATISTICS = ("normal", "depth", "hits")
+#: Pixels whose defocus width is below this (pixels) are in focus: the factored filter may take them.
+IN_FOCUS_WIDTH = 1.0
+
+
+def _pixel_depth(statistics):
+    hits = statistics.total("hits")
+    return np.where(hits > 0, statistics.total("depth") / np.maximum(hits, 1), np.inf)  # pilot sums both
+
+
+def _demodulable(statistics):
+    # Demodulation needs a diffuse reflectance in every channel: other pixels (metals, the environment) are
+    # neither filtered nor taken as neighbours (their guide is out of reach).
+    return np.all(statistics.mean("albedo") > 1e-3, axis=-1)
+
+
 @register
 class AafDof(_AxisAligned):
     name = "aaf-dof"
     kinds = ("dof",)
     Options = AafDofOptions
     requires = (ThinLens(),)
-    statistics = ("rgb", "nearest", "farthest")
     description = ("axis-aligned filter for depth of field (Mehta et al. 2014): per-pixel Gaussian 0.307 x the "
                    "least circle of confusion of the pixel's samples, guided by the defocus of its nearest and "
-                   "farthest sample; a quarter of the budget as pilot, the rest allocated per pixel")
+                   "farthest sample; a quarter of the budget as pilot, the rest allocated per pixel; factoring=direct "
+                   "filters in-focus pixels' albedo-demodulated direct light with the soft-shadow width (Mehta et al. "
+                   "2012)")
+
+    @property
+    def statistics(self):
+        factored = FACTORED_STATISTICS if self.options.factoring == "direct" else ()
+        return ("rgb", "nearest", "farthest") + factored
+
+    @property
+    def pilot_statistics(self):
+        return FACTORED_PILOT_STATISTICS if self.options.factoring == "direct" else ()
 
     def check(self, context):
         circle_of_confusion(1.0, *_lens_arguments(context))  # a pinhole camera fails here
@@ -363,16 +420,54 @@ class AafDof(_AxisAligned):
         sigma = dof_filter_width(statistics.total("nearest"), statistics.total("farthest"), *_lens_arguments(context))
         return options.width_scale * sigma, None
 
+    def shadow_widths(self, context, options, statistics, sigma):
+        """The factored pixels' soft-shadow widths (pixels and scene units; 0 elsewhere) and their mask.
+
+        A pixel is factored where its defocus width ``sigma`` is below
+        :data:`IN_FOCUS_WIDTH`, its first hit has an albedo to demodulate by,
+        and :func:`~sparselt.filters.axis_aligned.shadow_filter_width` gives
+        it a width (some sample's shadow ray was blocked, the width at least
+        :data:`~sparselt.filters.axis_aligned.MINIMUM_SIGMA`).
+        """
+        shadow, shadow_world = shadow_filter_width(statistics.total("least_penumbra"), _pixel_depth(statistics),
+                                                   context.scene.lens_geometry()["pixels_per_tangent"])
+        factored = (sigma < IN_FOCUS_WIDTH) & _demodulable(statistics) & (options.width_scale * shadow > 0)
+        return (np.where(factored, options.width_scale * shadow, 0.0),
+                np.where(factored, options.width_scale * shadow_world, 0.0), factored)
+
     def finish(self, context, options, statistics):
         lens_arguments = _lens_arguments(context)
         sigma, _ = self.widths(context, options, statistics)
         # Both ends of the pixel's defocus range: a pixel that mixes two surfaces matches neither pure neighbour.
         guide = np.stack([circle_of_confusion(statistics.total(end), *lens_arguments) for end in ("nearest", "farthest")],
                          axis=-1)
-        image = axis_aligned_filter(statistics.mean("rgb"), sigma, guide=guide, tolerance=np.maximum(sigma, 1.0),
+        means = statistics.mean("rgb")
+        image = axis_aligned_filter(means, sigma, guide=guide, tolerance=np.maximum(sigma, 1.0),
                                     maximum_radius=options.maximum_radius)
-        return image, sigma, {"aperture_radius": lens_arguments[0], "focus_distance": lens_arguments[1],
-                              "guide": "signed circles of confusion of the nearest and farthest sample (depths)"}
+        details = {"aperture_radius": lens_arguments[0], "focus_distance": lens_arguments[1],
+                   "guide": "signed circles of confusion of the nearest and farthest sample (depths)",
+                   "factoring": options.factoring}
+        if options.factoring == "none":
+            return image, sigma, details
+        shadow, shadow_world, factored = self.shadow_widths(context, options, statistics, sigma)
+        details.update(factored_pixel_fraction=float(factored.mean()),
+                       median_shadow_sigma_pixels=float(np.median(shadow[factored])) if factored.any() else 0.0,
+                       normal_tolerance=options.normal_tolerance)
+        if not factored.any():  # the analysis predicts no gain anywhere: nothing more to do
+            return image, sigma, details
+        image = np.array(image, dtype=np.float64)
+        direct, albedo = statistics.mean("direct_rgb"), statistics.mean("albedo")
+        demodulable = _demodulable(statistics)
+        safe = demodulable[..., None]
+        irradiance = np.where(safe, direct / np.where(safe, albedo, 1.0), 0.0)
+        pixel_depth = _pixel_depth(statistics)
+        depth_guide = np.where(np.isfinite(pixel_depth) & demodulable, pixel_depth, 1e30)
+        filtered = axis_aligned_filter(irradiance, shadow, guide=depth_guide,
+                                       tolerance=np.where(factored, shadow_world, 1.0),
+                                       fixed_guide=statistics.mean("normal"), fixed_tolerance=options.normal_tolerance,
+                                       maximum_radius=options.maximum_radius)
+        image[factored] = filtered[factored] * albedo[factored] + (means[factored] - direct[factored])
+        return image, sigma, details
 
 
 @register

@@ -164,15 +164,15 @@ class GradientOptions(MethodOptions):
                                help="'held-out': alpha from a ladder around 0.2 (or the primal image alone) by how "
                                     "well one half of the samples' L2 reconstruction predicts the other half's primal "
                                     "image (no reference used); 'fixed': the option alpha, as in the paper")
-    shift: str = option("replay", choices=SHIFT_MAPS,
-                        help="the shift map: replay every random number at the neighbour ('replay'), or replay up "
-                             "to the first hit and reconnect to the base's second vertex where both samples are "
-                             "rough ('reconnection', Kettunen et al. 2015, 5.1; needs offsets=4)")
+    shift: str = option("reconnection", choices=SHIFT_MAPS,
+                        help="the shift map: replay up to the first hit and reconnect to the base's second vertex "
+                             "where both samples are rough ('reconnection', Kettunen et al. 2015, 5.1; needs "
+                             "offsets=4), or replay every random number at the neighbour ('replay')")
 
     def __post_init__(self):
         if self.shift == "reconnection" and self.offsets != 4:
             raise ValueError(f"shift='reconnection' needs offsets=4 (its pairs are weighted from both sides), got "
-                             f"offsets={self.offsets}")
+                             f"offsets={self.offsets}: give shift=replay with offsets=2")
 
 
 @dataclass(frozen=True)

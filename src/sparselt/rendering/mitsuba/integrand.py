@@ -25,9 +25,17 @@ from .runtime import modules
 #: ``secondary_distance``: length of the ray sampled at the first vertex to its hit, ``inf`` for none;
 #: ``secondary_diffuse``: that ray was sampled from a diffuse lobe; ``lens_u``, ``lens_v``: the lens sample
 #: in primary sample space (thin lens only); ``camera_emission`` (3): the part of the contribution that is
-#: emission seen directly by the camera ray (0 where the layout does not count it).
+#: emission seen directly by the camera ray (0 where the layout does not count it); ``direct_light`` (3): the
+#: first vertex's direct lighting, the part of the contribution of the paths that end at a light reached from
+#: the first vertex (its next-event estimate plus the MIS-weighted emission its BSDF ray finds);
+#: ``light_distance``: ``d1``, the distance from the first vertex to its light sample (``inf`` without one);
+#: ``occluder_distance``: ``d2``, the distance from that light point to the nearest blocker of the shadow ray
+#: (``inf`` where it is not blocked); ``light_size``: ``sigma_l = sqrt(A) / 2`` of the sampled emitter's shape
+#: of area ``A`` (0 for lights without a shape). The last three are the soft-shadow analysis's inputs (Mehta et
+#: al. 2012, 3); the blocker's ray is traced only where ``occluder_distance`` is evaluated (Dr.Jit is lazy).
 AUXILIARY_QUANTITIES = ("primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance",
-                        "secondary_diffuse", "lens_u", "lens_v", "camera_emission")
+                        "secondary_diffuse", "lens_u", "lens_v", "camera_emission", "direct_light", "light_distance",
+                        "occluder_distance", "light_size")
 
 
 def path_contribution(scene, layout, samples, auxiliary=None):
@@ -77,9 +85,12 @@ def path_contribution(scene, layout, samples, auxiliary=None):
             auxiliary["camera_emission"] = mi.Color3f(result)
 
     for index, plan in enumerate(layout.vertices, start=1):
+        first = auxiliary is not None and index == 1
+        parts = {} if first else None
         result, next_interaction, ray, throughput, active, bsdf_sample = vertex_step(
-            world, context, plan, index, samples, interaction, ray, throughput, active, result)
-        if auxiliary is not None and index == 1:
+            world, context, plan, index, samples, interaction, ray, throughput, active, result, parts=parts)
+        if first:
+            _record_direct(world, auxiliary, interaction, parts)
             hit = active & next_interaction.is_valid()
             auxiliary["secondary_distance"] = dr.select(hit, next_interaction.t, dr.inf)
             auxiliary["secondary_diffuse"] = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Diffuse)
@@ -87,12 +98,19 @@ def path_contribution(scene, layout, samples, auxiliary=None):
     return result
 
 
-def vertex_step(world, context, plan, index, samples, interaction, ray, throughput, active, result):
+def vertex_step(world, context, plan, index, samples, interaction, ray, throughput, active, result, *, parts=None):
     """One vertex ``index`` of :func:`path_contribution`'s estimator, its contribution added to ``result``.
 
     Next-event estimation with the vertex's light sample (where ``plan``
     says so, :func:`next_event`), the BSDF sample, and the emission its ray
     finds (:func:`emission_found`).
+
+    ``parts``, a dict, receives this vertex's terms (the same arithmetic,
+    so ``result`` is bit for bit the same): ``light`` (the
+    :func:`light_sample`, where ``plan`` does next-event estimation),
+    ``next_event`` and ``emission`` (its two terms of ``result``, each
+    absent where ``plan`` does not add it), ``light_attempted`` (the lanes
+    that sampled a light, before the sample's density or visibility).
 
     Returns
     -------
@@ -106,7 +124,13 @@ def vertex_step(world, context, plan, index, samples, interaction, ray, throughp
     active &= interaction.is_valid()
     bsdf = interaction.bsdf(ray)
     if plan.next_event:
-        result += next_event(world, context, bsdf, interaction, samples, index, throughput, active)
+        if parts is None:
+            result += next_event(world, context, bsdf, interaction, samples, index, throughput, active)
+        else:  # next_event's two steps, the light sample kept
+            parts["light"] = light_sample(world, bsdf, interaction, samples, index, active)
+            parts["light_attempted"] = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+            parts["next_event"] = light_contribution(context, bsdf, interaction, parts["light"], throughput)
+            result += parts["next_event"]
     direction = mi.Point2f(samples[f"bsdf{index}_u"], samples[f"bsdf{index}_v"])
     bsdf_sample, bsdf_weight = bsdf.sample(context, interaction, samples[f"lobe{index}"], direction, active)
     throughput = dr.select(active, throughput * bsdf_weight, 0.0)
@@ -116,7 +140,10 @@ def vertex_step(world, context, plan, index, samples, interaction, ray, throughp
     if plan.count_emission_hit:
         delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
         emission = emission_found(world, plan, interaction, next_interaction, bsdf_sample.pdf, delta, active)
-        result += dr.select(active, throughput * emission, 0.0)
+        emission = dr.select(active, throughput * emission, 0.0)
+        if parts is not None:
+            parts["emission"] = emission
+        result += emission
     return result, next_interaction, ray, throughput, active, bsdf_sample
 
 
@@ -181,6 +208,48 @@ def _record_primary(sensor, auxiliary, interaction, samples, layout):
     # Defaults for quantities a path without a first bounce never sets.
     auxiliary["secondary_distance"] = dr.full(mi.Float, dr.inf, dr.width(depth))
     auxiliary["secondary_diffuse"] = dr.full(mi.Bool, False, dr.width(depth))
+    auxiliary["direct_light"] = mi.Color3f(dr.zeros(mi.Float, dr.width(depth)))
+    auxiliary["light_distance"] = dr.full(mi.Float, dr.inf, dr.width(depth))
+    auxiliary["occluder_distance"] = dr.full(mi.Float, dr.inf, dr.width(depth))
+    auxiliary["light_size"] = dr.zeros(mi.Float, dr.width(depth))
+
+
+def _record_direct(world, auxiliary, interaction, parts):
+    """The first vertex's direct lighting and its light sample's soft-shadow geometry (:data:`AUXILIARY_QUANTITIES`).
+
+    ``d1`` is the light sample's distance. Mitsuba returns a blocked light
+    sample with density and weight 0 (but its point and distance kept): a
+    sample of an area light that faces the receiver and has density 0 is
+    a blocked candidate, and one more ray along the shadow segment finds
+    the nearest blocker; ``d2`` is its distance from the light point
+    (Mehta et al. 2012, 3: the light-occluder distance). The light's
+    size is its shape's ``sigma_l = sqrt(A) / 2``: Mehta et al. (2012) model
+    a planar light as a Gaussian of standard deviation ``sigma_l`` whose
+    effective width ``2 sigma_l`` is the light's side.
+    """
+    mi, dr = modules()
+    width = dr.width(interaction.t)
+    direct = mi.Color3f(dr.zeros(mi.Float, width))
+    if "next_event" in parts:
+        direct += parts["next_event"]
+    if "emission" in parts:
+        direct += parts["emission"]
+    auxiliary["direct_light"] = direct
+    if "light" not in parts:
+        return  # _record_primary's defaults: no light sample
+    direction_sample, _, active_light = parts["light"]
+    attempted = parts["light_attempted"] & ~direction_sample.delta
+    area = direction_sample.emitter.get_shape().surface_area()
+    facing = dr.dot(direction_sample.n, direction_sample.d) < 0.0
+    candidate = attempted & (area > 0.0) & (direction_sample.pdf == 0.0) & facing & \
+        dr.isfinite(direction_sample.dist) & (direction_sample.dist > 0.0)
+    blocker = world.ray_intersect(interaction.spawn_ray_to(direction_sample.p), candidate)
+    blocked = candidate & blocker.is_valid()
+    sampled = (active_light & ~direction_sample.delta) | blocked
+    distance = direction_sample.dist
+    auxiliary["light_distance"] = dr.select(sampled, distance, dr.inf)
+    auxiliary["occluder_distance"] = dr.select(blocked, dr.norm(direction_sample.p - blocker.p), dr.inf)
+    auxiliary["light_size"] = dr.select(sampled & (area > 0.0), 0.5 * dr.sqrt(area), 0.0)
 
 
 def camera_axis(sensor):

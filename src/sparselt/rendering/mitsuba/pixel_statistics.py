@@ -29,17 +29,31 @@ from .runtime import modules
 #: whose secondary ray came from a diffuse lobe; ``albedo``, ``normal``: the camera hit's diffuse reflectance and
 #: shading normal; ``depth``, ``hits``: the camera hit's depth and 1 (0 for a miss); ``nearest``, ``farthest``:
 #: the camera hit's depth (``inf`` for a miss); ``shortest``: the diffuse-lobe secondary ray's length (``inf``
-#: otherwise).
+#: otherwise); ``direct_rgb``: the first vertex's direct lighting (``direct_light``, 0 where the contribution was
+#: not finite); ``least_shadow_slope``, ``greatest_shadow_slope``: the slope ``s = d1 / d2 - 1`` of a blocked
+#: light sample (``inf`` / ``-inf`` where not blocked; Mehta et al. 2012's ``s2`` and ``s1``);
+#: ``least_penumbra``: ``sigma_l s`` of a blocked sample, the light's size times its slope (``inf`` otherwise),
+#: what the soft shadow's bandlimit needs (:func:`sparselt.filters.axis_aligned.shadow_filter_width`).
 PIXEL_STATISTICS = {"rgb": "sum", "rgb_squared": "sum", "diffuse_rgb": "sum", "albedo": "sum", "normal": "sum",
-                    "depth": "sum", "hits": "sum", "nearest": "min", "farthest": "max", "shortest": "min"}
+                    "depth": "sum", "hits": "sum", "nearest": "min", "farthest": "max", "shortest": "min",
+                    "direct_rgb": "sum", "least_shadow_slope": "min", "greatest_shadow_slope": "max",
+                    "least_penumbra": "min"}
 #: Each reduction as the numpy ufunc that merges two partial results, and its identity.
 REDUCTIONS = {"sum": (np.add, 0.0), "min": (np.minimum, np.inf), "max": (np.maximum, -np.inf)}
 
 
-def statistic_quantity(name, value, recorded):
-    """The per-sample quantity behind a :data:`PIXEL_STATISTICS` name."""
+def statistic_quantity(name, value, recorded, finite=None):
+    """The per-sample quantity behind a :data:`PIXEL_STATISTICS` name (``finite``: the lanes whose contribution
+    was kept, :func:`~sparselt.rendering.mitsuba.integrand.zero_nonfinite`)."""
     mi, dr = modules()
     depth = recorded["primary_depth"]
+    if name == "direct_rgb":
+        return zero_nonfinite(recorded["direct_light"], finite)[0]
+    if name in ("least_shadow_slope", "greatest_shadow_slope", "least_penumbra"):
+        slope, blocked = shadow_slope(recorded)
+        if name == "least_penumbra":
+            return dr.select(blocked, recorded["light_size"] * slope, dr.inf)
+        return dr.select(blocked, slope, dr.inf if name == "least_shadow_slope" else -dr.inf)
     if name == "rgb":
         return value
     if name == "rgb_squared":
@@ -57,6 +71,20 @@ def statistic_quantity(name, value, recorded):
     if name in ("nearest", "farthest"):
         return mi.Float(depth)
     return dr.select(recorded["secondary_diffuse"], recorded["secondary_distance"], dr.inf)  # shortest
+
+
+def shadow_slope(recorded):
+    """``s = d1 / d2 - 1`` of each sample's blocked light sample (Mehta et al. 2012, 3), and the lanes blocked.
+
+    ``d1`` (``light_distance``) is the distance from the receiver to the
+    light point, ``d2`` (``occluder_distance``) from the light point to the
+    blocker; the occlusion ``g(x + s y)`` of receiver point ``x`` and light
+    point ``y`` has its spectrum on the line ``Omega_y = s Omega_x``.
+    """
+    _, dr = modules()
+    distance, occluder = recorded["light_distance"], recorded["occluder_distance"]
+    blocked = dr.isfinite(occluder) & dr.isfinite(distance) & (occluder > 0.0)
+    return dr.select(blocked, distance / dr.select(blocked, occluder, 1.0) - 1.0, 0.0), blocked
 
 
 def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None, lanes=None):
@@ -117,7 +145,7 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
                                     lanes)
         recorded = {}
         value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded))
-        quantities = {name: statistic_quantity(name, value, recorded) for name in names}
+        quantities = {name: statistic_quantity(name, value, recorded, finite) for name in names}
         flat = {name: [quantity.x, quantity.y, quantity.z] if dr.size_v(quantity) == 3 else [quantity]
                 for name, quantity in quantities.items()}
         operations = {"sum": dr.ReduceOp.Add, "min": dr.ReduceOp.Min, "max": dr.ReduceOp.Max}
