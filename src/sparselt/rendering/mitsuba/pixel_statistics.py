@@ -158,6 +158,9 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
             for name, channels in flat.items():
                 identity = REDUCTIONS[PIXEL_STATISTICS[name]][1]
                 padded[name] = [dr.full(mi.Float, identity, slots.block_count * block) for _ in channels]
+                # Evaluated buffers, not literals: a literal of the launch's own size would fold into the kernel,
+                # whose code (and cache entry) would then depend on whether the padding happens to add nothing.
+                dr.make_opaque(*padded[name])
                 for target, channel in zip(padded[name], channels):
                     dr.scatter(target, channel, slot)
             flat = padded
