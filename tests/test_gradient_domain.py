@@ -355,7 +355,7 @@ def test_held_out_alpha_scores_the_reconstruction_error_up_to_a_constant():
 
 
 def test_gradient_methods_choose_alpha_from_their_own_halves(scene, layout):
-    """Held out (the default): two halves at seeds 2s and 2s + 1, every path counted once, the choice recorded;
+    """Held out (the default): two halves of the samples, every path counted once, the choice recorded;
     one sample per pixel cannot be halved and keeps the fixed alpha."""
     context = _context(scene, layout)
     result = run_timed(get_method("gradient-l2"), context, Budget(spp=4, seed=5))
@@ -366,3 +366,22 @@ def test_gradient_methods_choose_alpha_from_their_own_halves(scene, layout):
     np.testing.assert_array_equal(result.image, again.image)
     single = run_timed(get_method("gradient-l2"), context, Budget(spp=1, seed=5))
     assert single.details["alpha"] == 0.2 and single.details["alpha_scores"] is None
+
+
+@pytest.mark.parametrize("shift, spp", [("replay", 5), ("reconnection", 5), ("reconnection", 4)])
+def test_halves_are_the_samples_split_by_index(scene, layout, shift, spp):
+    """The two halves (base samples below spp // 2, and the rest) add up to the whole draw of the same seed (an
+    even spp splits each pixel's block in the middle, an odd one by masks)."""
+    whole = scene.sample_gradients(layout, _grid(layout), spp, 4, shift=shift)
+    first, second = scene.sample_gradients(layout, _grid(layout), spp, 4, shift=shift, halves=True)
+    for name in ("sums", "albedo", "camera_emission", "replayed", "pairs"):
+        if getattr(whole, name) is None:
+            assert getattr(first, name) is None and getattr(second, name) is None
+            continue
+        np.testing.assert_allclose(getattr(first, name) + getattr(second, name), getattr(whole, name), rtol=1e-5,
+                                   atol=1e-6)
+    assert first.nonfinite + second.nonfinite == whole.nonfinite
+    two = scene.sample_gradients(layout, _grid(layout), 2, 4, shift=shift)  # the first half: samples 0 and 1
+    np.testing.assert_allclose(first.sums, two.sums, rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="spp must be >= 2 to be halved"):
+        scene.sample_gradients(layout, _grid(layout), 1, 4, shift=shift, halves=True)

@@ -103,7 +103,8 @@ shift correlates the pair (diffuse surfaces) a small alpha wins; where it
 does not (fireflies, caustics, depth of field through glossy objects) the
 gradients are noisier than the pixels and any fixed alpha loses to path
 tracing (issue 37 measured 0.17-0.58x). The samples are drawn as two
-independent halves (seeds ``2 s`` and ``2 s + 1``); each half's L2
+independent halves (base samples below ``spp // 2`` and the rest, reduced
+apart in the same launch); each half's L2
 reconstruction, for each alpha of a factor-2 ladder around 0.2 and for the
 primal image alone, is scored against the *other* half's primal image
 (:func:`~sparselt.recovery.poisson.held_out_alpha`: an unbiased estimate of
@@ -349,14 +350,14 @@ class _GradientDomain(Method):
             raise ValueError(f"{self.name} renders at the scene's film resolution {context.scene.width}x"
                              f"{context.scene.height}, got an output resolution {width}x{height}")
         held_out = options.alpha_choice == "held-out" and budget.spp >= 2
-        # Held out: two independent halves (seeds 2 s and 2 s + 1), so that each half's primal image can judge
-        # the other's reconstruction; the estimates of all the samples are those of their summed sums.
-        parts = ((budget.spp // 2, 2 * budget.seed), (budget.spp - budget.spp // 2, 2 * budget.seed + 1)) \
-            if held_out else ((budget.spp, budget.seed),)
+        # Held out: two independent halves of the samples (base samples below spp // 2 and the rest, reduced apart
+        # in the same launch), so that each half's primal image can judge the other's reconstruction; the
+        # estimates of all the samples are those of their summed sums.
         with timer("sampling"):
-            drawn = [context.scene.sample_gradients(context.layout, context.grid_shape, spp, seed,
-                                                    offsets=options.offsets, shift=options.shift)
-                     for spp, seed in parts]
+            drawn = context.scene.sample_gradients(context.layout, context.grid_shape, budget.spp, budget.seed,
+                                                   offsets=options.offsets, shift=options.shift, halves=held_out)
+            drawn = list(drawn) if held_out else [drawn]
+        parts = ((budget.spp // 2,), (budget.spp - budget.spp // 2,)) if held_out else ((budget.spp,),)
         with timer("integration"):
             samples = _merged(drawn)
             separate = options.direct_emission == "primal" and context.layout.count_camera_emission
@@ -364,7 +365,7 @@ class _GradientDomain(Method):
             albedo, divisors = (demodulation_divisors(samples.albedo, budget.spp, options.albedo_floor)
                                 if demodulate else (None, None))
             primal, gradient_x, gradient_y = _estimates(samples, budget.spp, separate, divisors)
-            halves = [_estimates(part, spp, separate, divisors) for part, (spp, _) in zip(drawn, parts)] \
+            halves = [_estimates(part, spp, separate, divisors) for part, (spp,) in zip(drawn, parts)] \
                 if held_out else None
         with timer("reconstruction"):
             alpha, scores = options.alpha, None

@@ -25,6 +25,10 @@ GRADIENT_SHIFTS = {4: ((1, 0), (-1, 0), (0, 1), (0, -1)), 2: ((1, 0), (0, 1))}  
 #: second vertex where it is diffuse (:mod:`sparselt.rendering.mitsuba.reconnection`).
 SHIFT_MAPS = ("replay", "reconnection")
 GRADIENT_LANE_LIMIT = 1 << 23  # lanes (base and offset paths) per gradient-domain launch
+#: Lanes (base samples, each with its 4 offsets) per reconnection launch. Its kernel is large: tracing it costs
+#: about a second per launch (measured at 256x256: 16 spp in 16 launches took 3x as long as in one), so a launch
+#: takes as many samples as memory allows (about 57 floats per lane come back: 1.9 GB at the limit).
+RECONNECTION_LANE_LIMIT = 1 << 23
 
 
 class GradientSamples(NamedTuple):
@@ -75,7 +79,7 @@ def gradient_paths(width, height, offsets):
     return width * height + sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS[offsets])
 
 
-def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="replay"):
+def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="replay", halves=False):
     """Gradient-domain path samples: every base sample replayed at the neighbouring pixels, in one kernel.
 
     Base sample ``i`` of pixel ``p`` is
@@ -105,10 +109,15 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
     shift : {'replay', 'reconnection'}
         The shift map (:data:`SHIFT_MAPS`). ``'reconnection'`` needs the 4
         neighbours (its weights are two-sided) and returns ``pairs``.
+    halves : bool
+        Return the sums of base samples ``0 .. spp // 2 - 1`` and of the
+        rest separately (two independent halves of the same samples, for the
+        held-out choice of :mod:`sparselt.methods.gradient_domain`): the
+        reconnection shift reduces both in its one launch. Needs ``spp >= 2``.
 
     Returns
     -------
-    GradientSamples
+    GradientSamples, or a tuple of two with ``halves``
         The sums of the paths' contributions, of their emission seen
         directly and of their first hits' diffuse albedo, per base pixel
         and shift, and the count of non-finite paths.
@@ -121,14 +130,23 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
         raise ValueError(f"the reconnection shift needs offsets=4 (its pairs are weighted from both sides), "
                          f"got offsets={offsets}")
     spp = int(spp)
-    if spp < 1:
-        raise ValueError(f"spp must be >= 1, got {spp}")
+    if spp < 1 or (halves and spp < 2):
+        raise ValueError(f"spp must be >= {2 if halves else 1}{' to be halved' if halves else ''}, got {spp}")
     width, height = scene.width, scene.height
+    ranges = ((0, spp // 2), (spp // 2, spp)) if halves else ((0, spp),)
     if shift == "reconnection":
-        return launch(lambda folded_seed: _reconnection_work(scene, layout, grid_shape, spp, folded_seed), seed,
-                      path_samples=spp * gradient_paths(width, height, offsets))
+        def reconnection_work(folded_seed):
+            parts = _reconnection_work(scene, layout, grid_shape, spp, folded_seed, ranges[0][1] if halves else None)
+            return parts if halves else parts[0]
+
+        return launch(reconnection_work, seed, path_samples=spp * gradient_paths(width, height, offsets))
 
     def work(folded_seed):
+        parts = tuple(replay_range(folded_seed, start, stop) for start, stop in ranges)
+        return parts if halves else parts[0]
+
+    def replay_range(folded_seed, start, stop):
+        """The replay shift's sums of base samples ``start .. stop - 1``."""
         mi, dr = modules()
         shifts = ((0, 0),) + GRADIENT_SHIFTS[offsets]
         paths_per_base = len(shifts)
@@ -141,8 +159,8 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
         emission_sums = np.zeros((pixels * paths_per_base, 3))
         albedo_sums = np.zeros((pixels * paths_per_base, 3))
         nonfinite = 0
-        for first in range(0, spp, per_launch):
-            count = min(per_launch, spp - first)
+        for first in range(start, stop, per_launch):
+            count = min(per_launch, stop - first)
             index = dr.arange(mi.UInt32, pixels * paths_per_base * count)
             samples_per_block = dr.opaque(mi.UInt32, count)
             block = index // samples_per_block
@@ -179,17 +197,22 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
     return launch(work, seed, path_samples=spp * gradient_paths(width, height, offsets))
 
 
-def _reconnection_work(scene, layout, grid_shape, spp, folded_seed):
-    """:func:`sample_gradients` with the reconnection shift: one lane per base sample, its 4 offsets in the lane."""
+def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
+    """:func:`sample_gradients` with the reconnection shift: one lane per base sample, its 4 offsets in the lane.
+
+    Returns a tuple of :class:`GradientSamples`: one, or with ``half`` two (base samples below ``half`` and the
+    rest), reduced apart in the same launches.
+    """
     mi, dr = modules()
     width, height = scene.width, scene.height
     shifts = GRADIENT_SHIFTS[4]
     pixels = width * height
-    per_launch = max(1, min(spp, GRADIENT_LANE_LIMIT // (pixels * (1 + len(shifts)))))
+    per_launch = max(1, min(spp, RECONNECTION_LANE_LIMIT // pixels))
     names = ("sums", "albedo", "camera_emission", "replayed")
-    reductions = {name: np.zeros((pixels, 1 + len(shifts), 3)) for name in names}
-    pairs = np.zeros((pixels, len(shifts), 2, 3))
-    nonfinite = 0
+    part_count = 1 if half is None else 2
+    reductions = [{name: np.zeros((pixels, 1 + len(shifts), 3)) for name in names} for _ in range(part_count)]
+    pairs = [np.zeros((pixels, len(shifts), 2, 3)) for _ in range(part_count)]
+    nonfinite = [0] * part_count
     for first in range(0, spp, per_launch):
         count = min(per_launch, spp - first)
         index = dr.arange(mi.UInt32, pixels * count)
@@ -226,18 +249,41 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed):
         flat = [value for name in names for value in channels[name]] + pair_channels
         scalars = [component for value in flat for component in (value.x, value.y, value.z)]
         dr.eval(scalars, bad)
-        reduced = [dr.block_sum(channel, count) for channel in scalars]
-        nonfinite += sum(int(np.count_nonzero(np.asarray(flag))) for flag in bad)
-        dr.eval(reduced)
-        values = stacked(reduced).reshape(pixels, -1, 3)
         paths = 1 + len(shifts)
-        for position, name in enumerate(names):
-            reductions[name] += values[:, position * paths:(position + 1) * paths]
-        pairs += values[:, len(names) * paths:].reshape(pixels, len(shifts), 2, 3)
+
+        def accumulate(part, reduced):
+            values = stacked(reduced).reshape(pixels, -1, 3)
+            for position, name in enumerate(names):
+                reductions[part][name] += values[:, position * paths:(position + 1) * paths]
+            pairs[part] += values[:, len(names) * paths:].reshape(pixels, len(shifts), 2, 3)
+
+        if half is None or first + count <= half or first >= half:  # the chunk is one part: one block per pixel
+            part = 0 if half is None or first + count <= half else 1
+            reduced = [dr.block_sum(channel, count) for channel in scalars]
+            dr.eval(reduced)
+            nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag))) for flag in bad)
+            accumulate(part, reduced)
+        elif 2 * (half - first) == count:  # split in the middle: two blocks per pixel, no masks
+            reduced = [dr.block_sum(channel, count // 2) for channel in scalars]
+            dr.eval(reduced)
+            lane_half = (sample_index >= dr.opaque(mi.UInt32, half))
+            for part in (0, 1):
+                in_part = lane_half if part else ~lane_half
+                nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag & in_part))) for flag in bad)
+                accumulate(part, [np.asarray(channel, dtype=np.float64)[part::2] for channel in reduced])
+        else:  # uneven: each part masked
+            for part in (0, 1):
+                in_part = (sample_index >= dr.opaque(mi.UInt32, half)) if part else (
+                    sample_index < dr.opaque(mi.UInt32, half))
+                reduced = [dr.block_sum(dr.select(in_part, channel, 0.0), count) for channel in scalars]
+                dr.eval(reduced)
+                nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag & in_part))) for flag in bad)
+                accumulate(part, reduced)
     shape = (height, width, 1 + len(shifts), 3)
-    return GradientSamples(reductions["sums"].reshape(shape), reductions["camera_emission"].reshape(shape),
-                           reductions["albedo"].reshape(shape), nonfinite, reductions["replayed"].reshape(shape),
-                           pairs.reshape(height, width, len(shifts), 2, 3))
+    return tuple(GradientSamples(reduction["sums"].reshape(shape), reduction["camera_emission"].reshape(shape),
+                                 reduction["albedo"].reshape(shape), bad_paths, reduction["replayed"].reshape(shape),
+                                 pair.reshape(height, width, len(shifts), 2, 3))
+                 for reduction, pair, bad_paths in zip(reductions, pairs, nonfinite))
 
 
 def _finite(value):
