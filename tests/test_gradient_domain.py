@@ -282,7 +282,7 @@ def test_reconnection_agrees_with_replay_on_rough_surfaces_and_sky(name, kind):
     estimates = {}
     for shift in ("replay", "reconnection"):
         runs = []
-        for seed in range(24):
+        for seed in range(16):
             samples = scene.sample_gradients(layout, grid, 32, seed, shift=shift)
             runs.append(gradient_estimates(samples.sums, 32, samples.pairs, samples.replayed))
         estimates[shift] = [np.array([run[index] for run in runs]) for index in range(3)]
