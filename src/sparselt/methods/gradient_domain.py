@@ -43,7 +43,12 @@ the light beyond ``x2``; the pairs are weighted from both sides (multiple
 importance sampling), which keeps the estimates unbiased where the
 reconnection fails. Its price: the offsets no longer bring new light paths,
 so the primal image has one independent tail per base sample instead of
-five. Measured in ``docs/experiments/ablation-shift`` (see the README there).
+five, and its kernel is larger. Measured in ``docs/experiments/ablation-shift``
+(2x on cornell-box and courtyard) and over the whole standard suite in
+``docs/experiments/suite-gradient-reconnection`` (0.32x on mirror-room, where
+mirrors make the two sides choose different shifts and the pairs fall back to
+uncorrelated differences, and a loss on thin-geometry): the default stays
+``'replay'``.
 
 **Emitters seen directly** (option ``direct_emission``). The part of a path's
 contribution that is emission seen by the camera ray itself
@@ -165,10 +170,11 @@ class GradientOptions(MethodOptions):
                                help="'held-out': alpha from a ladder around 0.2 (or the primal image alone) by how "
                                     "well one half of the samples' L2 reconstruction predicts the other half's primal "
                                     "image (no reference used); 'fixed': the option alpha, as in the paper")
-    shift: str = option("reconnection", choices=SHIFT_MAPS,
-                        help="the shift map: replay up to the first hit and reconnect to the base's second vertex "
-                             "where both samples are rough ('reconnection', Kettunen et al. 2015, 5.1; needs "
-                             "offsets=4), or replay every random number at the neighbour ('replay')")
+    shift: str = option("replay", choices=SHIFT_MAPS,
+                        help="the shift map: replay every random number at the neighbour ('replay'), or replay up "
+                             "to the first hit and reconnect to the base's second vertex where both samples are "
+                             "rough ('reconnection', Kettunen et al. 2015, 5.1; needs offsets=4: 2x on diffuse "
+                             "interiors, 0.3x on mirror-room, docs/experiments/suite-gradient-reconnection)")
 
     def __post_init__(self):
         if self.shift == "reconnection" and self.offsets != 4:
