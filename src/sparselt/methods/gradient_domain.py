@@ -314,13 +314,12 @@ def _merged(parts):
     """One :class:`~sparselt.rendering.mitsuba.gradients.GradientSamples` of several draws: their sums added."""
     if len(parts) == 1:
         return parts[0]
-    first, *rest = parts
 
     def total(name):
         values = [getattr(part, name) for part in parts]
         return None if values[0] is None else sum(values[1:], values[0])
 
-    return first._replace(**{name: total(name) for name in first._fields})
+    return parts[0]._replace(**{name: total(name) for name in parts[0]._fields})
 
 
 def _estimates(samples, spp, separate, divisors):
@@ -363,7 +362,7 @@ class _GradientDomain(Method):
             drawn = context.scene.sample_gradients(context.layout, context.grid_shape, budget.spp, budget.seed,
                                                    offsets=options.offsets, shift=options.shift, halves=held_out)
             drawn = list(drawn) if held_out else [drawn]
-        parts = ((budget.spp // 2,), (budget.spp - budget.spp // 2,)) if held_out else ((budget.spp,),)
+        part_spps = (budget.spp // 2, budget.spp - budget.spp // 2) if held_out else (budget.spp,)
         with timer("integration"):
             samples = _merged(drawn)
             separate = options.direct_emission == "primal" and context.layout.count_camera_emission
@@ -371,7 +370,7 @@ class _GradientDomain(Method):
             albedo, divisors = (demodulation_divisors(samples.albedo, budget.spp, options.albedo_floor)
                                 if demodulate else (None, None))
             primal, gradient_x, gradient_y = _estimates(samples, budget.spp, separate, divisors)
-            halves = [_estimates(part, spp, separate, divisors) for part, (spp,) in zip(drawn, parts)] \
+            halves = [_estimates(part, spp, separate, divisors) for part, spp in zip(drawn, part_spps)] \
                 if held_out else None
         with timer("reconstruction"):
             alpha, scores = options.alpha, None

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .integrand import path_contribution, zero_nonfinite
+from .integrand import finite_lanes, path_contribution, zero_nonfinite
 from .lanes import pss_vector, seeded_generator
 from .launch import launch
 from .readback import count_false, stacked
@@ -237,7 +237,8 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
                                            mi.UInt32(dr.select(inside, target_x, 0)),
                                            mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
             pair = shifted_pair(scene, layout, base, offset_samples, inside)
-            offset_finite = (_finite(pair.offset_value) & _finite(pair.weighted_base) & _finite(pair.weighted_offset)
+            offset_finite = (finite_lanes(pair.offset_value) & finite_lanes(pair.weighted_base)
+                             & finite_lanes(pair.weighted_offset)
                              & finite & inside)
             bad.append(inside & ~offset_finite)
             keep = offset_finite
@@ -285,8 +286,3 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
                                  pair.reshape(height, width, len(shifts), 2, 3))
                  for reduction, pair, bad_paths in zip(reductions, pairs, nonfinite))
 
-
-def _finite(value):
-    """Lanes whose three channels are finite."""
-    _, dr = modules()
-    return dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)

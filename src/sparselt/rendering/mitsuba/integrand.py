@@ -68,15 +68,10 @@ def path_contribution(scene, layout, samples, auxiliary=None):
     """
     mi, dr = modules()
     context = mi.BSDFContext()
-    position = mi.Point2f(samples["x"], samples["y"])
-    aperture = mi.Point2f(samples["lens_u"], samples["lens_v"]) if layout.thin_lens else mi.Point2f(0.5, 0.5)
-    ray, ray_weight = scene.sensor.sample_ray(time=0.0, sample1=0.5, sample2=position, sample3=aperture)
     world = scene.scene
-    throughput = mi.Color3f(ray_weight)
+    ray, throughput, interaction = camera_hit(scene, layout, samples)
     result = mi.Color3f(0.0)
     active = mi.Bool(True)
-
-    interaction = world.ray_intersect(ray, mi.RayFlags.All, scene.coherent_camera_rays, active)
     if auxiliary is not None:
         _record_primary(scene.sensor, auxiliary, interaction, samples, layout)
     if layout.count_camera_emission:
@@ -96,6 +91,16 @@ def path_contribution(scene, layout, samples, auxiliary=None):
             auxiliary["secondary_diffuse"] = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Diffuse)
         interaction = next_interaction
     return result
+
+
+def camera_hit(scene, layout, samples):
+    """The camera ray of each lane's film (and lens) sample, its weight as a ``Color3f`` and its first hit."""
+    mi, _ = modules()
+    position = mi.Point2f(samples["x"], samples["y"])
+    aperture = mi.Point2f(samples["lens_u"], samples["lens_v"]) if layout.thin_lens else mi.Point2f(0.5, 0.5)
+    ray, ray_weight = scene.sensor.sample_ray(time=0.0, sample1=0.5, sample2=position, sample3=aperture)
+    hit = scene.scene.ray_intersect(ray, mi.RayFlags.All, scene.coherent_camera_rays, mi.Bool(True))
+    return ray, mi.Color3f(ray_weight), hit
 
 
 def vertex_step(world, context, plan, index, samples, interaction, ray, throughput, active, result, *, parts=None):
@@ -123,14 +128,13 @@ def vertex_step(world, context, plan, index, samples, interaction, ray, throughp
     mi, dr = modules()
     active &= interaction.is_valid()
     bsdf = interaction.bsdf(ray)
-    if plan.next_event:
-        if parts is None:
-            result += next_event(world, context, bsdf, interaction, samples, index, throughput, active)
-        else:  # next_event's two steps, the light sample kept
-            parts["light"] = light_sample(world, bsdf, interaction, samples, index, active)
-            parts["light_attempted"] = active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-            parts["next_event"] = light_contribution(context, bsdf, interaction, parts["light"], throughput)
-            result += parts["next_event"]
+    if plan.next_event:  # next_event's two steps, so that parts can keep the light sample
+        light = light_sample(world, bsdf, interaction, samples, index, active)
+        contribution = light_contribution(context, bsdf, interaction, light, throughput)
+        if parts is not None:
+            parts.update(light=light, next_event=contribution,
+                         light_attempted=active & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth))
+        result += contribution
     direction = mi.Point2f(samples[f"bsdf{index}_u"], samples[f"bsdf{index}_v"])
     bsdf_sample, bsdf_weight = bsdf.sample(context, interaction, samples[f"lobe{index}"], direction, active)
     throughput = dr.select(active, throughput * bsdf_weight, 0.0)
@@ -271,7 +275,13 @@ def power_heuristic(pdf_a, pdf_b):
 def zero_nonfinite(value, valid=None):
     """``value`` with NaN or infinite lanes (and lanes not ``valid``) set to 0, and the mask of kept lanes."""
     _, dr = modules()
-    finite = dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)
+    finite = finite_lanes(value)
     if valid is not None:
         finite &= valid
     return dr.select(finite, value, 0.0), finite
+
+
+def finite_lanes(value):
+    """The lanes whose three channels are all finite."""
+    _, dr = modules()
+    return dr.isfinite(value.x) & dr.isfinite(value.y) & dr.isfinite(value.z)

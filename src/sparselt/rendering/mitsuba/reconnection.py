@@ -70,7 +70,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from .integrand import (emission_found, light_contribution, light_sample, next_event, power_heuristic,
+from .integrand import (camera_hit, emission_found, light_contribution, light_sample, next_event, power_heuristic,
                         vertex_step)
 from .runtime import modules
 
@@ -134,11 +134,7 @@ def split_path(scene, layout, samples, tail_active=True):
     mi, dr = modules()
     context = mi.BSDFContext()
     world = scene.scene
-    position = mi.Point2f(samples["x"], samples["y"])
-    aperture = mi.Point2f(samples["lens_u"], samples["lens_v"]) if layout.thin_lens else mi.Point2f(0.5, 0.5)
-    ray, ray_weight = scene.sensor.sample_ray(time=0.0, sample1=0.5, sample2=position, sample3=aperture)
-    camera_weight = mi.Color3f(ray_weight)
-    first = world.ray_intersect(ray, mi.RayFlags.All, scene.coherent_camera_rays, mi.Bool(True))
+    ray, camera_weight, first = camera_hit(scene, layout, samples)
     valid = first.is_valid()
     lanes = dr.width(valid)
     zero = dr.zeros(mi.Color3f, lanes)
