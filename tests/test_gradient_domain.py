@@ -373,3 +373,86 @@ def test_halves_are_the_samples_split_by_index(scene, layout, shift, spp):
     np.testing.assert_allclose(first.sums, two.sums, rtol=1e-5, atol=1e-6)
     with pytest.raises(ValueError, match="spp must be >= 2 to be halved"):
         scene.sample_gradients(layout, _grid(layout), 1, 4, shift=shift, halves=True)
+
+
+# The per-image choice of shift (shift='auto', issue 37, third session).
+
+def test_held_out_choice_with_one_estimator_is_held_out_alpha():
+    """One estimator: the same choice and the same scores, bit for bit."""
+    from sparselt.recovery.poisson import held_out_alpha, held_out_choice
+
+    image, generator = _smooth_image(seed=4)
+    exact = forward_differences(image)
+    halves = [(image + 0.2 * generator.standard_normal(image.shape),)
+              + tuple(g + 0.3 * generator.standard_normal(g.shape) for g in exact) for _ in range(2)]
+    alpha, scores = held_out_alpha(halves)
+    (label, chosen), joint = held_out_choice({"only": halves})
+    assert (label, chosen) == ("only", alpha)
+    assert {key[1]: value for key, value in joint.items()} == scores
+
+
+def test_held_out_choice_prefers_the_estimator_with_better_gradients_not_the_quieter_primal():
+    """Two estimators: A with a quiet primal image and poor gradients, B with a noisy primal image and good
+    gradients. Judged against the mean of both primal images, B's reconstruction (nearer the image) wins; each
+    judged by its own other half, the quieter primal would have favoured A."""
+    from sparselt.recovery.poisson import held_out_choice, screened_poisson_family
+
+    image, generator = _smooth_image(seed=5)
+    exact = forward_differences(image)
+
+    def halves(primal_noise, gradient_noise):
+        return [(image + primal_noise * generator.standard_normal(image.shape),)
+                + tuple(g + gradient_noise * generator.standard_normal(g.shape) for g in exact) for _ in range(2)]
+
+    estimators = {"quiet-primal": halves(0.05, 0.2), "good-gradients": halves(0.3, 0.01)}
+    (label, alpha), scores = held_out_choice(estimators)
+    assert label == "good-gradients"
+    errors = {name: min(sum(np.sum(np.square(screened_poisson_family(*half, (a,))[0] - image)) for half in value)
+                        for a in (0.05, 0.1, 0.2, 0.4, 0.8, 1.6, 3.2, float("inf")))
+              for name, value in estimators.items()}
+    assert errors["good-gradients"] < errors["quiet-primal"]
+    with pytest.raises(ValueError, match="at least one estimator"):
+        held_out_choice({})
+
+
+def test_auto_shift_draws_a_pilot_with_each_shift_and_counts_every_path(scene, layout):
+    """shift='auto': a pilot of a quarter of the base samples with each shift, the choice among both shifts'
+    alphas recorded, the rest with the winner; every path counted (the losing pilot too); reproducible; one sample
+    per pixel keeps replay."""
+    from sparselt.methods.gradient_domain import pilot_spp
+
+    context = _context(scene, layout)
+    method = get_method("gradient-l2:shift=auto")
+    result = run_timed(method, context, Budget(spp=8, seed=3))
+    details = result.details
+    assert details["shift_used"] in ("replay", "reconnection") and details["pilot_spp"] == pilot_spp(8) == 2
+    assert {key.split(":")[0] for key in details["alpha_scores"]} == {"replay", "reconnection"}
+    assert result.path_samples == (8 + 2) * gradient_paths(SIZE, SIZE, 4)
+    np.testing.assert_array_equal(result.image, run_timed(method, context, Budget(spp=8, seed=3)).image)
+    single = run_timed(method, context, Budget(spp=1, seed=3))
+    assert single.details["shift_used"] == "replay" and single.details["pilot_spp"] == 0
+    assert [pilot_spp(spp) for spp in (2, 3, 7, 8, 16, 64)] == [2, 2, 2, 2, 4, 16]
+
+
+def test_auto_shift_is_consistent(scene, layout, reference):
+    """shift='auto' with a fixed alpha on the Cornell box (where it picks reconnection): the L2 image is
+    unbiased given the choice, so over seeds its mean matches the reference within 3 standard errors."""
+    context = _context(scene, layout)
+    method = get_method("gradient-l2:shift=auto:alpha_choice=fixed")
+    images = np.array([run_timed(method, context, Budget(spp=8, seed=seed)).image for seed in range(24)],
+                      dtype=np.float64)
+    mean, standard_error = reference[0], reference[1]
+    spread = np.sqrt(images.var(axis=0, ddof=1) / len(images) + standard_error ** 2)
+    z = np.abs(images.mean(axis=0) - mean) / np.maximum(spread, 1e-12)
+    assert np.mean(z > 3) < 0.02, np.mean(z > 3)
+
+
+def test_auto_shift_needs_four_neighbours_and_no_demodulation():
+    from sparselt.methods.options import resolve_options
+
+    with pytest.raises(ValueError, match=r"shift='auto' needs offsets=4"):
+        resolve_options(method_class("gradient-l1").Options, {"shift": "auto", "offsets": "2"},
+                        grid_shape=(8, 8), owner="gradient-l1")
+    with pytest.raises(ValueError, match=r"shift='auto' needs demodulation='none'"):
+        resolve_options(method_class("gradient-l2").Options, {"shift": "auto", "demodulation": "albedo"},
+                        grid_shape=(8, 8), owner="gradient-l2")

@@ -121,6 +121,19 @@ samples. The choice depends on the samples, so the image is consistent
 (its bias vanishes with spp) rather than unbiased. One sample per pixel
 cannot be halved and keeps ``alpha``.
 
+**The choice of shift** (option ``shift='auto'``). Neither shift wins
+everywhere: reconnection doubled the speed-up on diffuse interiors and lost
+on mirrors and thin geometry (above). With ``'auto'`` a pilot of a quarter of
+the base samples (:func:`pilot_spp`, at least 2) is drawn with each shift,
+each in two halves and with its own random numbers (:func:`shift_seed`);
+:func:`~sparselt.recovery.poisson.held_out_choice` scores every (shift,
+alpha) pair by how well one half's L2 reconstruction predicts the mean of
+*both* shifts' other-half primal images (a judge shared by every candidate,
+so the score compares reconstruction errors, not the primal images' own
+noise), and the rest of the base samples is drawn with the winner, its
+pilot's samples kept. The losing pilot is spent: a quarter more base
+samples than ``spp``, all counted. No reference is used.
+
 References
 ----------
 Kettunen, M., Manzi, M., Aittala, M., Lehtinen, J., Durand, F., Zwicker, M.
@@ -140,7 +153,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..recovery.poisson import DEFAULT_ALPHA, held_out_alpha, screened_poisson, screened_poisson_l1
+from ..recovery.poisson import (DEFAULT_ALPHA, HELD_OUT_ALPHAS, held_out_alpha, held_out_choice, screened_poisson,
+                                screened_poisson_l1)
 from ..rendering.mitsuba.gradients import GRADIENT_SHIFTS, SHIFT_MAPS, gradient_paths
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .options import MethodOptions, option
@@ -170,16 +184,21 @@ class GradientOptions(MethodOptions):
                                help="'held-out': alpha from a ladder around 0.2 (or the primal image alone) by how "
                                     "well one half of the samples' L2 reconstruction predicts the other half's primal "
                                     "image (no reference used); 'fixed': the option alpha, as in the paper")
-    shift: str = option("replay", choices=SHIFT_MAPS,
+    shift: str = option("replay", choices=SHIFT_MAPS + ("auto",),
                         help="the shift map: replay every random number at the neighbour ('replay'), or replay up "
                              "to the first hit and reconnect to the base's second vertex where both samples are "
                              "rough ('reconnection', Kettunen et al. 2015, 5.1; needs offsets=4: 2x on diffuse "
-                             "interiors, 0.3x on mirror-room, docs/experiments/suite-gradient-reconnection)")
+                             "interiors, 0.3x on mirror-room, docs/experiments/suite-gradient-reconnection), or "
+                             "chosen per image ('auto': a pilot of a quarter of the base samples with each shift, "
+                             "judged on held-out halves; the rest with the winner)")
 
     def __post_init__(self):
-        if self.shift == "reconnection" and self.offsets != 4:
-            raise ValueError(f"shift='reconnection' needs offsets=4 (its pairs are weighted from both sides), got "
-                             f"offsets={self.offsets}: give shift=replay with offsets=2")
+        if self.shift in ("reconnection", "auto") and self.offsets != 4:
+            raise ValueError(f"shift={self.shift!r} needs offsets=4 (the reconnection's pairs are weighted from both "
+                             f"sides), got offsets={self.offsets}: give shift=replay with offsets=2")
+        if self.shift == "auto" and self.demodulation != "none":
+            raise ValueError(f"shift='auto' needs demodulation='none' (the pilots are judged before the albedo of "
+                             f"all the samples is known), got demodulation={self.demodulation!r}")
 
 
 @dataclass(frozen=True)
@@ -310,6 +329,24 @@ def demodulation_divisors(albedo_sums, spp, floor):
     return pixel, paths
 
 
+def pilot_spp(spp):
+    """``shift='auto'``'s pilot: base samples per pixel drawn with each shift, a quarter of ``spp``, at least 2
+    (two halves) and at most ``spp``."""
+    return min(spp, max(2, spp // 4))
+
+
+def shift_seed(seed, index):
+    """The seed of ``shift='auto'``'s draw ``index`` (0, 1: the pilots of :data:`SHIFT_MAPS`' shifts; 2: the rest):
+    ``seed`` itself for the first, hashed beyond 32 bits for the others (independent random numbers;
+    :func:`~sparselt.rendering.mitsuba.launch.fold_seed`)."""
+    return seed + index * (1 << 32)
+
+
+def _score_key(key):
+    """A held-out score's key as text: the alpha, or the shift and alpha of ``shift='auto'``."""
+    return str(key) if not isinstance(key, tuple) else f"{key[0]}:{key[1]}"
+
+
 def _merged(parts):
     """One :class:`~sparselt.rendering.mitsuba.gradients.GradientSamples` of several draws: their sums added."""
     if len(parts) == 1:
@@ -354,27 +391,32 @@ class _GradientDomain(Method):
         if (width, height) != (context.scene.width, context.scene.height):
             raise ValueError(f"{self.name} renders at the scene's film resolution {context.scene.width}x"
                              f"{context.scene.height}, got an output resolution {width}x{height}")
-        held_out = options.alpha_choice == "held-out" and budget.spp >= 2
-        # Held out: two independent halves of the samples (base samples below spp // 2 and the rest, reduced apart
-        # in the same launch), so that each half's primal image can judge the other's reconstruction; the
-        # estimates of all the samples are those of their summed sums.
-        with timer("sampling"):
-            drawn = context.scene.sample_gradients(context.layout, context.grid_shape, budget.spp, budget.seed,
-                                                   offsets=options.offsets, shift=options.shift, halves=held_out)
-            drawn = list(drawn) if held_out else [drawn]
-        part_spps = (budget.spp // 2, budget.spp - budget.spp // 2) if held_out else (budget.spp,)
+        separate = options.direct_emission == "primal" and context.layout.count_camera_emission
+        if options.shift == "auto" and budget.spp >= 2:
+            drawn, shift, alpha, scores, pilot_spp = self._choose_shift(context, budget, separate, timer)
+            part_spps = None
+        else:
+            shift, pilot_spp = ("replay" if options.shift == "auto" else options.shift), 0
+            held_out = options.alpha_choice == "held-out" and budget.spp >= 2
+            # Held out: two independent halves of the samples (base samples below spp // 2 and the rest, reduced
+            # apart in the same launch), so that each half's primal image can judge the other's reconstruction;
+            # the estimates of all the samples are those of their summed sums.
+            with timer("sampling"):
+                drawn = context.scene.sample_gradients(context.layout, context.grid_shape, budget.spp, budget.seed,
+                                                       offsets=options.offsets, shift=shift, halves=held_out)
+                drawn = list(drawn) if held_out else [drawn]
+            part_spps = (budget.spp // 2, budget.spp - budget.spp // 2) if held_out else None
+            alpha, scores = options.alpha, None
         with timer("integration"):
             samples = _merged(drawn)
-            separate = options.direct_emission == "primal" and context.layout.count_camera_emission
             demodulate = options.demodulation == "albedo"
             albedo, divisors = (demodulation_divisors(samples.albedo, budget.spp, options.albedo_floor)
                                 if demodulate else (None, None))
             primal, gradient_x, gradient_y = _estimates(samples, budget.spp, separate, divisors)
             halves = [_estimates(part, spp, separate, divisors) for part, spp in zip(drawn, part_spps)] \
-                if held_out else None
+                if part_spps else None
         with timer("reconstruction"):
-            alpha, scores = options.alpha, None
-            if held_out:
+            if halves:
                 alpha, scores = held_out_alpha(halves)
             if np.isfinite(alpha):
                 result = self.reconstruct(options, alpha, primal, gradient_x, gradient_y)
@@ -384,16 +426,45 @@ class _GradientDomain(Method):
             image = estimate * albedo if demodulate else estimate
             if separate:
                 image = image + gradient_estimates(samples.camera_emission, budget.spp)[0]
-        paths = budget.spp * gradient_paths(width, height, options.offsets)
-        details = {"offsets": options.offsets, "shift": options.shift, "alpha": float(alpha),
+        # The pilot with the shift that lost is spent too.
+        paths = (budget.spp + pilot_spp) * gradient_paths(width, height, options.offsets)
+        details = {"offsets": options.offsets, "shift": options.shift, "shift_used": shift, "pilot_spp": pilot_spp,
+                   "alpha": float(alpha),
                    "alpha_choice": options.alpha_choice,
-                   "alpha_scores": {str(key): value for key, value in scores.items()} if scores else None,
+                   "alpha_scores": {_score_key(key): value for key, value in scores.items()} if scores else None,
                    "direct_emission": options.direct_emission,
                    "demodulation": options.demodulation, "albedo_floor": options.albedo_floor,
                    "demodulated_fraction": float(np.mean(albedo != 1.0)) if demodulate else 0.0,
                    "iterations": iterations, "stop_reason": stop_reason, "nonfinite_samples": samples.nonfinite,
                    "paths_per_base_sample": paths / (budget.spp * width * height)}
         return MethodResult(image=np.asarray(image, dtype=np.float32), path_samples=int(paths), details=details)
+
+    def _choose_shift(self, context, budget, separate, timer):
+        """``shift='auto'``: a pilot of :func:`pilot_spp` base samples per pixel with each shift, in independent
+        halves, judged by :func:`~sparselt.recovery.poisson.held_out_choice` (with alpha); the rest of the base
+        samples with the winner, its pilot's samples kept. Returns ``(drawn, shift, alpha, scores, pilot_spp)``."""
+        options, scene = self.options, context.scene
+        pilot = pilot_spp(budget.spp)
+        alphas = HELD_OUT_ALPHAS if options.alpha_choice == "held-out" else (options.alpha,)
+        with timer("sampling"):
+            pilots = {shift: list(scene.sample_gradients(context.layout, context.grid_shape, pilot,
+                                                         shift_seed(budget.seed, index), offsets=options.offsets,
+                                                         shift=shift, halves=True))
+                      for index, shift in enumerate(SHIFT_MAPS)}
+        with timer("integration"):
+            halves = {shift: [_estimates(part, spp, separate, None)
+                              for part, spp in zip(parts, (pilot // 2, pilot - pilot // 2))]
+                      for shift, parts in pilots.items()}
+        with timer("reconstruction"):
+            (shift, alpha), scores = held_out_choice(halves, alphas=alphas)
+        drawn = pilots[shift]
+        rest = budget.spp - pilot
+        if rest:
+            with timer("sampling"):
+                drawn.append(scene.sample_gradients(context.layout, context.grid_shape, rest,
+                                                    shift_seed(budget.seed, len(SHIFT_MAPS)),
+                                                    offsets=options.offsets, shift=shift))
+        return drawn, shift, alpha, scores, pilot
 
     def reconstruct(self, options, alpha, primal, gradient_x, gradient_y):  # pragma: no cover - interface
         raise NotImplementedError

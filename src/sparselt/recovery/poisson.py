@@ -191,7 +191,8 @@ def held_out_alpha(halves, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2):
     image itself, which is path tracing with the offset paths as extra
     samples. Both halves' variances scale with ``1/spp`` alike, so the alpha
     chosen for half the samples is the alpha for all of them (the L2
-    solution is linear in its inputs).
+    solution is linear in its inputs). :func:`held_out_choice` with one
+    estimator.
 
     References
     ----------
@@ -199,20 +200,71 @@ def held_out_alpha(halves, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2):
     predictions. J. R. Stat. Soc. B 36(2). Kettunen, M. et al. (2015).
     Gradient-domain path tracing. ACM TOG 34(4) (alpha = 0.2).
     """
-    (primal_a, *gradients_a), (primal_b, *gradients_b) = halves
+    (_, alpha), scores = held_out_choice({None: halves}, alphas=alphas, epsilon=epsilon)
+    return alpha, {alpha: score for (_, alpha), score in scores.items()}
+
+
+def held_out_choice(estimators, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2):
+    """The estimator and alpha whose L2 reconstruction from one half best predicts the other halves' primal images.
+
+    Parameters
+    ----------
+    estimators : dict
+        ``{label: halves}``, each ``halves`` two ``(primal, gradient_x,
+        gradient_y)`` of independent halves of that estimator's samples; every
+        estimator's samples independent of the others' (e.g. two shift maps
+        with their own random numbers).
+    alphas, epsilon
+        As :func:`held_out_alpha`.
+
+    Returns
+    -------
+    choice : tuple
+        ``(label, alpha)`` of least score (ties: the smaller alpha, then the
+        first label).
+    scores : dict
+        ``{(label, alpha): score}``.
+
+    Notes
+    -----
+    Each reconstruction from half ``A`` of an estimator is judged against
+    the same image for every estimator: the mean of all estimators' primal
+    images of half ``B`` (and the other way round). That judge is unbiased
+    and independent of every half-``A`` reconstruction, so ``E |R_A -
+    J_B|^2 = E |R_A - I|^2 + E |J_B - I|^2`` with the second term shared by
+    every candidate: score differences estimate differences of squared
+    error, across estimators as across alphas (:func:`held_out_alpha`'s
+    argument). Judging each estimator by its own other half would add its
+    own primal's variance and favour the estimator with the quieter primal
+    image, not the better reconstruction. With one estimator this is
+    :func:`held_out_alpha`.
+    """
+    labels = list(estimators)
+    if not labels:
+        raise ValueError("held_out_choice needs at least one estimator")
     candidates = tuple(float(alpha) for alpha in alphas)
     if DEFAULT_ALPHA not in candidates:
         candidates += (DEFAULT_ALPHA,)
-    reconstructions_a = screened_poisson_family(primal_a, *gradients_a, candidates)
-    reconstructions_b = screened_poisson_family(primal_b, *gradients_b, candidates)
     middle = candidates.index(DEFAULT_ALPHA)
-    scale = 0.5 * (reconstructions_a[middle] + reconstructions_b[middle])
+    reconstructions = {}
+    for label in labels:
+        (primal_a, *gradients_a), (primal_b, *gradients_b) = estimators[label]
+        reconstructions[label] = (screened_poisson_family(primal_a, *gradients_a, candidates),
+                                  screened_poisson_family(primal_b, *gradients_b, candidates))
+    count = float(len(labels))
+    scale = sum(0.5 * (reconstructions[label][0][middle] + reconstructions[label][1][middle])
+                for label in labels) / count
     weights = 1.0 / (np.mean(np.square(scale), axis=-1, keepdims=True) + epsilon)
+    judge_b = sum(np.asarray(estimators[label][1][0], dtype=np.float64) for label in labels) / count
+    judge_a = sum(np.asarray(estimators[label][0][0], dtype=np.float64) for label in labels) / count
     scores = {}
-    for alpha, image_a, image_b in zip(candidates, reconstructions_a, reconstructions_b):
-        if alpha in alphas:
-            scores[alpha] = float(np.sum(weights * (np.square(image_a - primal_b) + np.square(image_b - primal_a))))
-    best = min(scores, key=lambda alpha: (scores[alpha], alpha))
+    for label in labels:
+        for alpha, image_a, image_b in zip(candidates, *reconstructions[label]):
+            if alpha in alphas:
+                scores[(label, alpha)] = float(np.sum(weights * (np.square(image_a - judge_b)
+                                                                 + np.square(image_b - judge_a))))
+    order = {label: index for index, label in enumerate(labels)}
+    best = min(scores, key=lambda key: (scores[key], key[1], order[key[0]]))
     return best, scores
 
 
@@ -327,7 +379,15 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
     Residual balancing of ``rho`` (Boyd 3.4.1, ``mu = 10``, ``tau = 2``)
     drove ``rho`` down 16-64x and was 3-10x slower to a given objective;
     fast ADMM with restart (Goldstein et al. 2014) restarted every few
-    iterations and gained nothing; neither is used. The single-precision
+    iterations and gained nothing; neither is used. Measured again against
+    references (session 3 of issue 37: trimmed relMSE, 256x256, 16 and 64
+    spp, 7 suite scenes), balancing every 10 iterations settled the
+    firefly-heavy renders sooner (glass-caustic at 64 spp: 0.27 of the L2
+    image's relMSE against 0.34 with a fixed ``rho``; sunlit-room 0.09-0.20
+    against 0.14-0.26, but by darkening its caustics further), cost 1-4% on
+    the five others and ran every solve to the 50-iteration cap (the stop
+    rule stopped fixed-``rho`` solves after 20-44 on four of them): the
+    default stays a fixed ``rho``. The single-precision
     ``I`` step changed the objective reached by less than 1e-5 (relative)
     and made an iteration about 1.4x cheaper (its DCTs 4x).
 
