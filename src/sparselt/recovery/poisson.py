@@ -380,14 +380,13 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
     drove ``rho`` down 16-64x and was 3-10x slower to a given objective;
     fast ADMM with restart (Goldstein et al. 2014) restarted every few
     iterations and gained nothing; neither is used. Measured again against
-    references (session 3 of issue 37: trimmed relMSE, 256x256, 16 and 64
-    spp, 7 suite scenes), balancing every 10 iterations settled the
-    firefly-heavy renders sooner (glass-caustic at 64 spp: 0.27 of the L2
-    image's relMSE against 0.34 with a fixed ``rho``; sunlit-room 0.09-0.20
-    against 0.14-0.26, but by darkening its caustics further), cost 1-4% on
-    the five others and ran every solve to the 50-iteration cap (the stop
-    rule stopped fixed-``rho`` solves after 20-44 on four of them): the
-    default stays a fixed ``rho``. The single-precision
+    references (issue 37, third session: trimmed relMSE, 256x256, 16 and 64
+    spp, 6 suite scenes; ``docs/experiments/study-l1-iterations``),
+    balancing every 10 iterations settled glass-caustic at 64 spp sooner
+    (0.27 of the L2 image's relMSE after 50 iterations against 0.34 with a
+    fixed ``rho``), cost 1-4% on the five others and ran every solve to the
+    50-iteration cap (the stop rule stopped fixed-``rho`` solves after 20-44
+    on four of them): the default stays a fixed ``rho``. The single-precision
     ``I`` step changed the objective reached by less than 1e-5 (relative)
     and made an iteration about 1.4x cheaper (its DCTs 4x).
 
