@@ -456,3 +456,24 @@ def test_auto_shift_needs_four_neighbours_and_no_demodulation():
     with pytest.raises(ValueError, match=r"shift='auto' needs demodulation='none'"):
         resolve_options(method_class("gradient-l2").Options, {"shift": "auto", "demodulation": "albedo"},
                         grid_shape=(8, 8), owner="gradient-l2")
+
+
+def test_held_out_choice_keeps_the_default_estimator_within_noise():
+    """Two estimators of the same quality (independent draws of the same noise): by least score the second wins
+    about half the time; with the significance rule (2 standard errors, from 8x8-pixel blocks) rarely."""
+    from sparselt.recovery.poisson import held_out_choice
+
+    image, generator = _smooth_image(64, seed=6)
+    exact = forward_differences(image)
+
+    def halves():
+        return [(image + 0.2 * generator.standard_normal(image.shape),)
+                + tuple(g + 0.2 * generator.standard_normal(g.shape) for g in exact) for _ in range(2)]
+
+    switched = {0.0: 0, 2.0: 0}
+    for _ in range(20):
+        estimators = {"default": halves(), "other": halves()}
+        for significance in switched:
+            (label, _), _ = held_out_choice(estimators, significance=significance)
+            switched[significance] += label == "other"
+    assert switched[0.0] >= 5 and switched[2.0] <= 3, switched

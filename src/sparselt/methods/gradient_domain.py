@@ -131,7 +131,9 @@ alpha) pair by how well one half's L2 reconstruction predicts the mean of
 *both* shifts' other-half primal images (a judge shared by every candidate,
 so the score compares reconstruction errors, not the primal images' own
 noise), and the rest of the base samples is drawn with the winner, its
-pilot's samples kept. The losing pilot is spent: a quarter more base
+pilot's samples kept. ``replay`` is the default: reconnection replaces it
+only where its score is lower by more than 2 standard errors (a near-tie
+on a pilot is decided by noise, and reconnection costs more per sample). The losing pilot is spent: a quarter more base
 samples than ``spp``, all counted. No reference is used.
 
 References
