@@ -133,7 +133,11 @@ so the score compares reconstruction errors, not the primal images' own
 noise), and the rest of the base samples is drawn with the winner, its
 pilot's samples kept. ``replay`` is the default: reconnection replaces it
 only where its score is lower by more than 2 standard errors (a near-tie
-on a pilot is decided by noise, and reconnection costs more per sample). The losing pilot is spent: a quarter more base
+on a pilot is decided by noise, and reconnection costs more per sample).
+Measured over the suite (``docs/experiments/suite-shift-auto`` and
+``suite-shift-auto-significance``): worse than plain replay on most scenes
+(the pilot's extra quarter, and wrong choices on depth of field at 16 spp),
+so ``'replay'`` stays the default. The losing pilot is spent: a quarter more base
 samples than ``spp``, all counted. No reference is used.
 
 References
