@@ -262,7 +262,10 @@ def test_summary_and_equal_time_columns_reproduce(folder):
     assert list(pt_fit["spp_range"]) == list(fit.spp_range)
     for seed, (slope, floor) in fit.relmse.items():
         assert same_number(pt_fit["relmse_per_seed"][str(seed)]["c"], slope)
-        assert same_number(pt_fit["relmse_per_seed"][str(seed)]["floor"], floor)
+        # The floor is an intercept too: its rounding error scales with the ladder's smallest relMSE, c / (largest
+        # spp), not with itself (cornell-box's 2.4e-7 came back 0.12% off).
+        assert math.isclose(pt_fit["relmse_per_seed"][str(seed)]["floor"], floor, rel_tol=RELATIVE,
+                            abs_tol=RELATIVE * abs(slope) / fit.spp_range[1])
 
 
 @pytest.mark.parametrize("folder", COMPARISONS, ids=_name)
