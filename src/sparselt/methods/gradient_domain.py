@@ -134,11 +134,12 @@ noise), and the rest of the base samples is drawn with the winner, its
 pilot's samples kept. ``replay`` is the default: reconnection replaces it
 only where its score is lower by more than 2 standard errors (a near-tie
 on a pilot is decided by noise, and reconnection costs more per sample).
-Measured over the suite (``docs/experiments/suite-shift-auto`` and
+The losing pilot is spent: a quarter more base samples than ``spp``, all
+counted. No reference is used. Measured over the suite
+(``docs/experiments/suite-shift-auto`` and
 ``suite-shift-auto-significance``): worse than plain replay on most scenes
 (the pilot's extra quarter, and wrong choices on depth of field at 16 spp),
-so ``'replay'`` stays the default. The losing pilot is spent: a quarter more base
-samples than ``spp``, all counted. No reference is used.
+so ``'replay'`` stays the default.
 
 References
 ----------
@@ -399,10 +400,10 @@ class _GradientDomain(Method):
                              f"{context.scene.height}, got an output resolution {width}x{height}")
         separate = options.direct_emission == "primal" and context.layout.count_camera_emission
         if options.shift == "auto" and budget.spp >= 2:
-            drawn, shift, alpha, scores, pilot_spp = self._choose_shift(context, budget, separate, timer)
+            drawn, shift, alpha, scores, pilot = self._choose_shift(context, budget, separate, timer)
             part_spps = None
         else:
-            shift, pilot_spp = ("replay" if options.shift == "auto" else options.shift), 0
+            shift, pilot = ("replay" if options.shift == "auto" else options.shift), 0
             held_out = options.alpha_choice == "held-out" and budget.spp >= 2
             # Held out: two independent halves of the samples (base samples below spp // 2 and the rest, reduced
             # apart in the same launch), so that each half's primal image can judge the other's reconstruction;
@@ -433,8 +434,8 @@ class _GradientDomain(Method):
             if separate:
                 image = image + gradient_estimates(samples.camera_emission, budget.spp)[0]
         # The pilot with the shift that lost is spent too.
-        paths = (budget.spp + pilot_spp) * gradient_paths(width, height, options.offsets)
-        details = {"offsets": options.offsets, "shift": options.shift, "shift_used": shift, "pilot_spp": pilot_spp,
+        paths = (budget.spp + pilot) * gradient_paths(width, height, options.offsets)
+        details = {"offsets": options.offsets, "shift": options.shift, "shift_used": shift, "pilot_spp": pilot,
                    "alpha": float(alpha),
                    "alpha_choice": options.alpha_choice,
                    "alpha_scores": {_score_key(key): value for key, value in scores.items()} if scores else None,

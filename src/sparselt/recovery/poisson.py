@@ -272,6 +272,7 @@ def held_out_choice(estimators, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2, signifi
     weights = 1.0 / (np.mean(np.square(scale), axis=-1, keepdims=True) + epsilon)
     judge_b = sum(np.asarray(estimators[label][1][0], dtype=np.float64) for label in labels) / count
     judge_a = sum(np.asarray(estimators[label][0][0], dtype=np.float64) for label in labels) / count
+
     def pixel_terms(label, alpha):
         index = candidates.index(alpha)
         image_a, image_b = reconstructions[label][0][index], reconstructions[label][1][index]
