@@ -108,10 +108,11 @@ class _FilteredMethod(Method):
     kinds = ("dof", "indirect", "path")
     family = "filter"
     warm_up_spp = 2  # the noise estimate needs two samples per pixel
+    sample_cells = False  # whether the filter reads the samples' grid cells (draw_pixel_samples)
 
     def run(self, context, budget, timer):
         options = self.options
-        samples, image = sample_mean_image(context, budget, timer)
+        samples, image = sample_mean_image(context, budget, timer, cells=self.sample_cells)
         filtered, details = self.filter(context, options, budget, samples, image, timer)
         details.update(nonfinite_samples=samples.nonfinite)
         return MethodResult(image=np.asarray(filtered, dtype=np.float32), path_samples=samples.values.shape[0],
@@ -163,6 +164,7 @@ class CosampBilateral(_FilteredMethod):
     Options = CosampBilateralOptions
     needs_resolution_multiple = True
     thesis_procedure = True
+    sample_cells = True  # the CoSaMP reconstruction bins the samples into the grid
     description = ("thesis 8.2 (eq. 8.3): the path-traced image of the CoSaMP samples, cross-bilateral filtered with "
                    "itself and the CoSaMP reconstruction (thesis procedure) as range guides")
 
@@ -178,7 +180,7 @@ class CosampBilateral(_FilteredMethod):
 
     def warm_up(self, context):
         # Compile the sampler's and the filter's kernels without paying for a CoSaMP run.
-        draw_pixel_samples(context, Budget(spp=self.warm_up_spp, seed=WARM_UP_SEED))
+        draw_pixel_samples(context, Budget(spp=self.warm_up_spp, seed=WARM_UP_SEED), cells=self.sample_cells)
         cross_bilateral(np.zeros((4, 4, 3)), [np.zeros((4, 4))], 1, 1.0, 1.0, channel_axis=-1)
 
 

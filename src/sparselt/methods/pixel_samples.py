@@ -28,8 +28,9 @@ class PixelSamples:
     ----------
     values : ndarray, shape (pixels * spp, 3), float32
         Path contributions, pixel-major in row-major pixel order.
-    cells : ndarray, shape (pixels * spp,), int64
-        Flat grid cell of each sample.
+    cells : ndarray, shape (pixels * spp,), int64, or None
+        Flat grid cell of each sample; None when drawn without them
+        (:func:`draw_pixel_samples` ``cells=False``).
     spp : int
     resolution : tuple of int
         Output ``(width, height)``.
@@ -42,7 +43,7 @@ class PixelSamples:
     """
 
     values: np.ndarray
-    cells: np.ndarray
+    cells: np.ndarray | None
     spp: int
     resolution: tuple
     nonfinite: int
@@ -59,8 +60,8 @@ class PixelSamples:
             per_pixel = array.reshape((-1, self.spp) + array.shape[1:])[:, index::folds]
             return np.ascontiguousarray(per_pixel).reshape((-1,) + array.shape[1:])
 
-        return PixelSamples(values=take(self.values), cells=take(self.cells), spp=len(range(index, self.spp, folds)),
-                            resolution=self.resolution, nonfinite=0,
+        return PixelSamples(values=take(self.values), cells=None if self.cells is None else take(self.cells),
+                            spp=len(range(index, self.spp, folds)), resolution=self.resolution, nonfinite=0,
                             auxiliary={name: take(array) for name, array in self.auxiliary.items()})
 
     def pixel_means_of(self, per_sample):
@@ -76,43 +77,49 @@ class PixelSamples:
         return per_sample.reshape((height, width, self.spp) + per_sample.shape[1:])
 
 
-def draw_pixel_samples(context, budget, *, resolution=None, auxiliary=()):
+def draw_pixel_samples(context, budget, *, resolution=None, auxiliary=(), cells=True):
     """Draw ``budget.spp`` samples per pixel in launches of about 4M lanes.
 
     ``resolution`` (default the comparison's output resolution) is the pixel
     grid: a pilot pass for an importance map draws per map cell instead.
     ``auxiliary`` names per-sample quantities drawn in the same kernels
-    (:data:`~sparselt.rendering.mitsuba.AUXILIARY_QUANTITIES`).
+    (:data:`~sparselt.rendering.mitsuba.AUXILIARY_QUANTITIES`). ``cells``:
+    whether to compute each sample's grid cell (the methods that bin samples
+    into the signal grid); without them the samples are the same, and a
+    grid too large to index (a deep ``path`` layout's default) is no obstacle.
+    A method's warm-up draws as its run does (the kernels differ).
     """
     width, height = resolution or context.resolution
     pixels = width * height
     per_launch = max(1, LANES_PER_LAUNCH // budget.spp)
     values = np.empty((pixels * budget.spp, 3), dtype=np.float32)
-    cells = np.empty(pixels * budget.spp, dtype=np.int64)
+    flat_cells = np.empty(pixels * budget.spp, dtype=np.int64) if cells else None
     nonfinite = 0
     recorded = {}
     for first in range(0, pixels, per_launch):
         count = min(per_launch, pixels - first)
         launch = context.scene.sample_pixels(
             context.layout, context.grid_shape, budget.spp, budget.seed, first_pixel=first, pixel_count=count,
-            resolution=(width, height), **({"auxiliary": tuple(auxiliary)} if auxiliary else {}))
+            resolution=(width, height), cells=cells, **({"auxiliary": tuple(auxiliary)} if auxiliary else {}))
         launch_values, launch_cells, bad = launch[:3]
         rows = slice(first * budget.spp, (first + count) * budget.spp)
         values[rows] = launch_values
-        cells[rows] = launch_cells
+        if cells:
+            flat_cells[rows] = launch_cells
         nonfinite += bad
         for name, array in (launch[3].items() if auxiliary else ()):
             if name not in recorded:
                 recorded[name] = np.empty((pixels * budget.spp,) + array.shape[1:], dtype=array.dtype)
             recorded[name][rows] = array
-    return PixelSamples(values=values, cells=cells, spp=budget.spp, resolution=(width, height), nonfinite=nonfinite,
-                        auxiliary=recorded)
+    return PixelSamples(values=values, cells=flat_cells, spp=budget.spp, resolution=(width, height),
+                        nonfinite=nonfinite, auxiliary=recorded)
 
 
-def sample_mean_image(context, budget, timer):
-    """Draw the budget's samples ('sampling') and average them per pixel ('integration'): the path-traced image."""
+def sample_mean_image(context, budget, timer, *, cells=False):
+    """Draw the budget's samples ('sampling'; their grid cells only with ``cells``) and average them per pixel
+    ('integration'): the path-traced image."""
     with timer("sampling"):
-        samples = draw_pixel_samples(context, budget)
+        samples = draw_pixel_samples(context, budget, cells=cells)
     with timer("integration"):
         image = samples.pixel_means()
     return samples, image

@@ -173,7 +173,7 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
             inside = ((target_x >= 0) & (target_x < film_width) & (target_y >= 0)
                       & (target_y < dr.opaque(mi.Int32, height)))
             samples, _ = pss_vector(layout, grid_shape, generator, mi.UInt32(dr.select(inside, target_x, 0)),
-                                    mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
+                                    mi.UInt32(dr.select(inside, target_y, 0)), (width, height), cell=False)
             recorded = {}
             value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded), inside)
             # A layout that counts no emission seen directly leaves its sums 0 without reducing zeros.
@@ -223,7 +223,7 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
         pixel_x = mi.Int32(pixel % mi.UInt32(film_width))
         pixel_y = mi.Int32(pixel // mi.UInt32(film_width))
         base_samples, _ = pss_vector(layout, grid_shape, seeded_generator(pixel, sample_index, folded_seed, 0),
-                                     mi.UInt32(pixel_x), mi.UInt32(pixel_y), (width, height))
+                                     mi.UInt32(pixel_x), mi.UInt32(pixel_y), (width, height), cell=False)
         base = split_path(scene, layout, base_samples)
         base_value, finite = zero_nonfinite(base.value)
         channels = {"sums": [base_value], "albedo": [base.albedo], "camera_emission": [base.camera_emission],
@@ -235,7 +235,8 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
                                                                                                           height))
             offset_samples, _ = pss_vector(layout, grid_shape, seeded_generator(pixel, sample_index, folded_seed, 0),
                                            mi.UInt32(dr.select(inside, target_x, 0)),
-                                           mi.UInt32(dr.select(inside, target_y, 0)), (width, height))
+                                           mi.UInt32(dr.select(inside, target_y, 0)), (width, height),
+                                           cell=False)
             pair = shifted_pair(scene, layout, base, offset_samples, inside)
             offset_finite = (finite_lanes(pair.offset_value) & finite_lanes(pair.weighted_base)
                              & finite_lanes(pair.weighted_offset)

@@ -17,6 +17,8 @@ statistically good algorithms for random number generation" (2014).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .runtime import modules
@@ -68,35 +70,59 @@ def explicit_lanes(items, sample_indices, seed, *, stream=0):
     return item, seeded_generator(item, sample_index, seed, stream)
 
 
-def pss_vector(layout, grid_shape, generator, pixel_x, pixel_y, film_size):
+def pss_vector(layout, grid_shape, generator, pixel_x, pixel_y, film_size, *, cell=True):
     """One PSS vector per lane from its PCG32, the image-plane dimensions jittered in film pixel ``(pixel_x, pixel_y)``.
 
     Returns ``(samples, cell)``: name -> ``mi.Float`` for every dimension of
-    ``layout``, and the flat C-order grid cell of each lane. The random
+    ``layout``, and the flat C-order grid cell of each lane (None with
+    ``cell=False``: the samples are the same). The random
     numbers are drawn in ``layout.dimensions`` order whatever the pixel: a
     lane seeded like another but given a neighbouring pixel replays its
     numbers there (the gradient-domain shift,
     :func:`sparselt.rendering.mitsuba.gradients.sample_gradients`).
+
+    Raises
+    ------
+    ValueError
+        ``cell`` is asked for on a grid of more cells than a 32-bit index
+        counts (:func:`check_indexable_grid`).
     """
     mi, dr = modules()
     film_width, film_height = film_size
-    strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
+    if cell:
+        check_indexable_grid(grid_shape)
+    strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1] if cell else None
     axis_of = {name: position for position, name in enumerate(layout.axes)}
     samples = {}
-    cell = mi.UInt32(0)
+    flat_cell = mi.UInt32(0) if cell else None
     for name in layout.dimensions:
         uniform = generator.next_float32()
         if name == "x":
             uniform = in_pixel(pixel_x, uniform, film_width)
         elif name == "y":
             uniform = in_pixel(pixel_y, uniform, film_height)
-        if name in axis_of:
+        if cell and name in axis_of:
             position = axis_of[name]
             resolution = dr.opaque(mi.Float, float(grid_shape[position]))
             coordinate = dr.minimum(mi.UInt32(uniform * resolution), mi.UInt32(resolution) - 1)
-            cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
+            flat_cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
         samples[name] = uniform
-    return samples, cell
+    return samples, flat_cell
+
+
+def check_indexable_grid(grid_shape):
+    """Refuse a signal grid whose flat cell index does not fit the kernels' 32 bits.
+
+    A kind's default grid on a deep ``path`` layout (4 cells per axis, 4 axes
+    per bounce) passes 2**32 cells after a few bounces: the samples do not
+    depend on the grid, but a flat cell index would wrap. Methods that bin
+    samples into the grid ask for cells; the others draw without them.
+    """
+    cells = math.prod(int(size) for size in grid_shape)
+    if cells >= 2**32:
+        raise ValueError(f"the signal grid {tuple(int(size) for size in grid_shape)} has {cells:.3g} cells: a method "
+                         "that bins samples into it needs at most 2**32 - 1 (give a coarser --shape, or a smaller "
+                         "--max-depth)")
 
 
 def in_pixel(pixel, uniform, size):

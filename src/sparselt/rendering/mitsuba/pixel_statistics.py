@@ -142,7 +142,7 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     def work(folded_seed):
         mi, dr = modules()
         _, samples, _ = pixel_lanes(layout, grid_shape, spp, folded_seed, 0, pixels, (scene.width, scene.height),
-                                    lanes)
+                                    lanes, cell=False)
         recorded = {}
         value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded))
         quantities = {name: statistic_quantity(name, value, recorded, finite) for name in names}

@@ -17,7 +17,7 @@ from .runtime import modules
 
 
 def sample_pixels(scene, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None,
-                  auxiliary=(), lanes=None):
+                  auxiliary=(), lanes=None, cells=True):
     """``spp`` path samples per film pixel, each at a uniformly random point of the pixel's PSS box.
 
     The image-plane dimensions are jittered inside the film pixel; every
@@ -55,14 +55,18 @@ def sample_pixels(scene, layout, grid_shape, spp, seed, first_pixel=0, pixel_cou
         pixel of the run; ``spp``, ``first_pixel`` and ``pixel_count``
         are then ignored. Sample ``i`` of pixel ``p`` is the same sample
         either way.
+    cells : bool, optional
+        Whether to compute each sample's grid cell (False: ``cells`` is
+        None, the samples are the same). A grid of 2**32 cells or more
+        cannot be indexed (:func:`~sparselt.rendering.mitsuba.lanes.check_indexable_grid`).
 
     Returns
     -------
     values : ndarray, shape (pixel_count * spp, 3), float32
         Path contributions, pixel-major (the ``spp`` samples of a pixel are
         consecutive); NaN or infinite ones are replaced by 0.
-    cells : ndarray, shape (pixel_count * spp,), int64
-        Flat C-order grid cell of each sample.
+    cells : ndarray, shape (pixel_count * spp,), int64, or None
+        Flat C-order grid cell of each sample (None with ``cells=False``).
     nonfinite : int
         Number of samples that were NaN or infinite.
     auxiliary : dict, only when ``auxiliary`` names quantities
@@ -81,12 +85,13 @@ def sample_pixels(scene, layout, grid_shape, spp, seed, first_pixel=0, pixel_cou
     def work(folded_seed):
         _, dr = modules()
         _, samples, cell = pixel_lanes(layout, grid_shape, spp, folded_seed, first_pixel, pixel_count,
-                                       (film_width, film_height), explicit)
+                                       (film_width, film_height), explicit, cell=cells)
         recorded = {} if auxiliary else None
         value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded))
         extra = [recorded[name] for name in auxiliary]
-        dr.eval(value, cell, finite, *extra)
-        result = (rgb_array((value.x, value.y, value.z)), np.asarray(cell, dtype=np.int64), count_false(finite))
+        dr.eval(value, finite, *extra, *([cell] if cells else []))
+        result = (rgb_array((value.x, value.y, value.z)), np.asarray(cell, dtype=np.int64) if cells else None,
+                  count_false(finite))
         if not auxiliary:
             return result
         return result + ({name: to_numpy(recorded[name]) for name in auxiliary},)
@@ -95,11 +100,12 @@ def sample_pixels(scene, layout, grid_shape, spp, seed, first_pixel=0, pixel_cou
     return launch(work, seed, path_samples=drawn)
 
 
-def pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count, film_size, explicit=None):
+def pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count, film_size, explicit=None, *, cell=True):
     """The PSS vectors of pixel samples (see :func:`sample_pixels`): ``(pixel, samples, cell)`` per lane.
 
     ``explicit``, ``(pixels, sample_indices)``, draws exactly those samples
-    instead of ``spp`` per pixel of the run; ``seed`` is the 32-bit seed.
+    instead of ``spp`` per pixel of the run; ``seed`` is the 32-bit seed;
+    ``cell=False``: no grid cell (None).
     """
     mi, dr = modules()
     if explicit is None:
@@ -107,5 +113,5 @@ def pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count, film_si
     else:
         pixel, generator = explicit_lanes(explicit[0], explicit[1], seed)
     width = dr.opaque(mi.UInt32, film_size[0])
-    samples, cell = pss_vector(layout, grid_shape, generator, pixel % width, pixel // width, film_size)
+    samples, cell = pss_vector(layout, grid_shape, generator, pixel % width, pixel // width, film_size, cell=cell)
     return pixel, samples, cell

@@ -121,10 +121,10 @@ class MitsubaScene:
         return sample_cells(self, layout, grid_shape, first_cell, cell_count, spp, seed, cells=cells)
 
     def sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=0, pixel_count=None, resolution=None,
-                      auxiliary=(), lanes=None):
+                      auxiliary=(), lanes=None, cells=True):
         """:func:`sparselt.rendering.mitsuba.pixels.sample_pixels` on this scene."""
         return sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=first_pixel, pixel_count=pixel_count,
-                             resolution=resolution, auxiliary=auxiliary, lanes=lanes)
+                             resolution=resolution, auxiliary=auxiliary, lanes=lanes, cells=cells)
 
     def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, lanes=None):
         """:func:`sparselt.rendering.mitsuba.pixel_statistics.sample_pixel_statistics` on this scene."""
