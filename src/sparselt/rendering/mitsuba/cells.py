@@ -13,7 +13,7 @@ import numpy as np
 from .integrand import path_contribution, zero_nonfinite
 from .lanes import ONE_MINUS_EPSILON, item_lanes
 from .launch import launch
-from .readback import rgb_array
+from .readback import rgb_array, to_device
 from .runtime import modules
 
 
@@ -52,7 +52,7 @@ def sample_cells(scene, layout, grid_shape, first_cell, cell_count, spp, seed, *
 
     def work(folded_seed):
         mi, dr = modules()
-        items = None if cells is None else mi.UInt32(cells)
+        items = None if cells is None else to_device(mi.UInt32, cells, np.uint32)
         cell, generator, _ = item_lanes(cell_count, spp, folded_seed, first=first_cell, items=items)
         strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
         axis_of = {name: position for position, name in enumerate(layout.axes)}

@@ -17,7 +17,7 @@ from ... import kernels
 from .integrand import path_contribution, zero_nonfinite
 from .lanes import ONE_MINUS_EPSILON, in_pixel, item_lanes
 from .launch import launch
-from .readback import count_false, rgb_array
+from .readback import count_false, rgb_array, to_device
 from .runtime import initialize, modules
 
 GUIDED_STREAM = 0x9E37  # PCG32 stream of guided renders, apart from the signal and pixel-sample streams
@@ -97,7 +97,7 @@ def render_guided(scene, layout, map_shape, tables, densities, spp, seed, *, mod
             else:
                 prefix = mi.UInt32(0)
             prefix = warp_axes(map_shape, tables, uniforms, layout.axes, prefix, first_axis)
-            density = dr.gather(mi.Float, mi.Float(np.ascontiguousarray(densities, dtype=np.float32)), prefix)
+            density = dr.gather(mi.Float, to_device(mi.Float, densities, np.float32), prefix)
 
         value, finite = zero_nonfinite(path_contribution(scene, layout, uniforms) / density, density > 0)
         scale = dr.opaque(mi.Float, 1.0 / int(spp))  # opaque: one kernel for every spp (a literal recompiles)
@@ -141,7 +141,7 @@ def global_order(scene, layout, map_shape, tables, spp, seed):
         warp_axes(map_shape[:2], tables[:2], uniforms, layout.axes, mi.UInt32(0), 0)
     target = film_pixel(scene, uniforms)
     dr.eval(target)
-    return mi.UInt32(kernels.counting_order(np.asarray(target, dtype=np.uint32), pixels))
+    return to_device(mi.UInt32, kernels.counting_order(np.asarray(target, dtype=np.uint32), pixels), np.uint32)
 
 
 def warp_axes(map_shape, tables, uniforms, names, prefix, first_axis):
@@ -155,7 +155,7 @@ def warp_axes(map_shape, tables, uniforms, names, prefix, first_axis):
     for axis in range(first_axis, len(map_shape)):
         name = names[axis]
         length = int(map_shape[axis])
-        table = mi.Float(np.ascontiguousarray(tables[axis], dtype=np.float32).reshape(-1))
+        table = to_device(mi.Float, tables[axis], np.float32)
         base = prefix * length
         value = uniforms[name]
         found = dr.binary_search(0, length - 1, lambda j: dr.gather(mi.Float, table, base + j) <= value)
@@ -193,12 +193,12 @@ def warp_points(map_shape, tables, uniforms, *, image_cells=None):
     mi, dr = modules()
     first_axis = 0 if image_cells is None else 2
     names = [f"axis{k}" for k in range(len(map_shape))]
-    values = {names[first_axis + k]: mi.Float(np.ascontiguousarray(uniforms[:, k], dtype=np.float32))
+    values = {names[first_axis + k]: to_device(mi.Float, uniforms[:, k], np.float32)
               for k in range(uniforms.shape[1])}
     if image_cells is None:
         prefix = dr.zeros(mi.UInt32, uniforms.shape[0])
     else:
-        prefix = mi.UInt32(np.asarray(image_cells, dtype=np.uint32))
+        prefix = to_device(mi.UInt32, image_cells, np.uint32)
     cells = warp_axes(map_shape, tables, values, names, prefix, first_axis)
     dr.eval(cells, *values.values())
     points = np.stack([np.asarray(values[names[first_axis + k]], dtype=np.float64)

@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from .readback import to_device
 from .runtime import modules
 
 #: The largest float32 below 1: every coordinate in primary sample space is clamped to ``[0, 1)``.
@@ -65,8 +66,8 @@ def seeded_generator(item, sample_index, seed, stream):
 def explicit_lanes(items, sample_indices, seed, *, stream=0):
     """Lanes for explicit (item, sample index) pairs, seeded exactly as :func:`item_lanes` seeds them."""
     mi, _ = modules()
-    item = mi.UInt32(np.ascontiguousarray(items, dtype=np.uint32))
-    sample_index = mi.UInt32(np.ascontiguousarray(sample_indices, dtype=np.uint32))
+    item = to_device(mi.UInt32, items, np.uint32)
+    sample_index = to_device(mi.UInt32, sample_indices, np.uint32)
     return item, seeded_generator(item, sample_index, seed, stream)
 
 

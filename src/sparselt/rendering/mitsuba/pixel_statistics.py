@@ -21,7 +21,7 @@ import numpy as np
 from .integrand import path_contribution, zero_nonfinite
 from .launch import launch
 from .pixels import pixel_lanes
-from .readback import stacked
+from .readback import stacked, to_device
 from .runtime import modules
 
 #: Per-pixel statistics :func:`sample_pixel_statistics` reduces, and their reduction.
@@ -153,7 +153,7 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
             block = int(spp)
         else:  # each lane into its slot: a pixel's lanes fill whole blocks, the rest of a block is the identity
             block = slots.block
-            slot = mi.UInt32(slots.slot)
+            slot = to_device(mi.UInt32, slots.slot, np.uint32)
             padded = {}
             for name, channels in flat.items():
                 identity = REDUCTIONS[PIXEL_STATISTICS[name]][1]
