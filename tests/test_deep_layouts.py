@@ -7,6 +7,7 @@ Real Mitsuba renders at small sizes, fixed seeds.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,44 +16,9 @@ from sparselt.cli import main
 from sparselt.rendering.layout import default_shape, path_layout
 from sparselt.rendering.scenes import get_scene
 
-#: A scene as a user writes it: lights of every kind sparselt's suite does not use (point, spot, constant
-#: environment) beside an area light, a procedural texture, a dielectric and a rough conductor, Mitsuba's default
-#: (Gaussian) pixel filter.
-USER_SCENE = """<scene version="3.0.0">
-    <sensor type="perspective">
-        <float name="fov" value="50"/>
-        <transform name="to_world"><lookat origin="0, 1.4, 3.6" target="0, 0.35, 0" up="0, 1, 0"/></transform>
-        <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="16"/></film>
-    </sensor>
-    <emitter type="constant"><rgb name="radiance" value="0.15, 0.2, 0.3"/></emitter>
-    <emitter type="point"><point name="position" x="-1.2" y="2.0" z="1.0"/><rgb name="intensity" value="3, 3, 3"/></emitter>
-    <emitter type="spot">
-        <transform name="to_world"><lookat origin="1.5, 2.5, 1.5" target="0, 0, 0"/></transform>
-        <rgb name="intensity" value="12, 12, 10"/><float name="cutoff_angle" value="25"/>
-    </emitter>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="0.3"/><rotate x="1" angle="90"/><translate x="0.8" y="2.2"/></transform>
-        <emitter type="area"><rgb name="radiance" value="8, 8, 8"/></emitter>
-    </shape>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/></transform>
-        <bsdf type="diffuse">
-            <texture type="checkerboard" name="reflectance">
-                <rgb name="color0" value="0.6, 0.3, 0.2"/><rgb name="color1" value="0.8, 0.8, 0.7"/>
-                <transform name="to_uv"><scale x="6" y="6"/></transform>
-            </texture>
-        </bsdf>
-    </shape>
-    <shape type="sphere">
-        <point name="center" x="0.35" y="0.35" z="0.5"/><float name="radius" value="0.35"/>
-        <bsdf type="dielectric"/>
-    </shape>
-    <shape type="sphere">
-        <point name="center" x="-0.6" y="0.3" z="0"/><float name="radius" value="0.3"/>
-        <bsdf type="roughconductor"><string name="material" value="Au"/><float name="alpha" value="0.15"/></bsdf>
-    </shape>
-</scene>
-"""
+#: A scene as a user writes it (examples/user-scene): point, spot and environment light beside a small area light, a
+#: bitmap texture and an OBJ mesh beside the XML, glass and rough gold, Mitsuba's default (Gaussian) pixel filter.
+USER_SCENE = Path(__file__).resolve().parents[1] / "examples" / "user-scene" / "scene.xml"
 
 DEPTH = 5
 
@@ -91,16 +57,15 @@ def test_cells_of_a_grid_beyond_32_bits_are_refused_by_name(scene):
 def test_compare_on_a_user_scene_at_depth_5_runs_every_kind_of_method(tmp_path, capsys):
     """PT, a gradient-domain method (its own kernels), a filter (pixel samples) and OIDN on the user's scene file,
     default grid: every cell recorded, every image finite and close to the reference's brightness."""
-    scene_file = tmp_path / "user.xml"
-    scene_file.write_text(USER_SCENE)
     out = tmp_path / "compare"
-    status = main(["compare", "--scene", str(scene_file), "--kind", "path", "--max-depth", str(DEPTH),
+    status = main(["compare", "--scene", str(USER_SCENE), "--kind", "path", "--max-depth", str(DEPTH),
+                   "--resolution", "24,16",
                    "--methods", "pt,gradient-l2,bilateral,oidn", "--spp", "8", "--seeds", "1,2",
                    "--timing-repeats", "1", "--pt-ladder-max-spp", "32", "--reference-spp", "256",
                    "--out", str(out), "--no-progress"])
     assert status == 0, capsys.readouterr().err
     recorded = json.loads((out / "compare.json").read_text())
-    assert recorded["config"]["shape"] == list(default_shape("path", DEPTH, (24, 16)))
+    assert recorded["config"]["shape"] == list(default_shape("path", DEPTH, (160, 96)))  # the film's, as documented
     import csv
 
     rows = list(csv.DictReader((out / "results.csv").open()))
