@@ -29,7 +29,7 @@ import argparse
 import statistics
 import time
 
-from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed, warm_up
 from sparselt.methods.pixel_samples import draw_pixel_samples
 from sparselt.rendering.layout import path_layout
 from sparselt.rendering.mitsuba import AUXILIARY_QUANTITIES, MitsubaScene
@@ -67,8 +67,8 @@ def main():
                                     resolution=(size, size), max_depth=3)
         method, uniform_method, baseline = get_method(name), get_method(name, options={"pilot_fraction": 1.0}), \
             get_method("pt")
-        method.warm_up(context)
-        baseline.warm_up(context)
+        warm_up(method, context)
+        warm_up(baseline, context)
         draw_pixel_samples(context, Budget(1, 0))
         for spp in spps:
             # Interleaved per seed, so that a slow spell of the shared machine hits every variant alike.

@@ -25,7 +25,7 @@ import os
 import tempfile
 
 from sparselt.experiments.compare import ComparisonConfig, compare
-from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed, warm_up
 from sparselt.rendering.layout import path_layout
 from sparselt.rendering.mitsuba import MitsubaScene
 from sparselt.rendering.scenes import get_scene
@@ -33,7 +33,7 @@ from sparselt.rendering.scenes import get_scene
 
 def method_phases(context, name, spp, repeats):
     method = get_method(name, grid_shape=context.grid_shape)
-    method.warm_up(context)
+    warm_up(method, context)
     runs = [run_timed(method, context, Budget(spp=spp, seed=seed)) for seed in range(1, repeats + 1)]
     best = min(runs, key=lambda run: run.total_seconds)
     return best

@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed, warm_up
 from sparselt.recovery.poisson import screened_poisson, screened_poisson_l1
 from sparselt.rendering.layout import path_layout
 from sparselt.rendering.mitsuba import MitsubaScene
@@ -56,7 +56,7 @@ def _sampling(arguments):
         context = ComparisonContext(scene=scene, layout=layout, kind=kind, grid_shape=grid, resolution=(size, size),
                                     max_depth=depth)
         baseline = get_method("pt")
-        baseline.warm_up(context)
+        warm_up(baseline, context)
         scene.sample_pixel_statistics(layout, grid, 0, ("rgb",), spp=1)
         for offsets in (4, 2):
             scene.sample_gradients(layout, grid, 1, 0, offsets=offsets)

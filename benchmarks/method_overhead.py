@@ -33,7 +33,7 @@ import statistics
 
 from sparselt.experiments.standard_suite import applicable_methods, standard_scenes, standard_suite
 from sparselt.experiments.suite_config import validate_suite
-from sparselt.methods import Budget, ComparisonContext, get_method, run_timed
+from sparselt.methods import Budget, ComparisonContext, get_method, run_timed, warm_up
 
 TARGETS = {"quick": 0.15, "default": 0.15, "paper": 0.10}
 METHODS = ("aaf-dof", "aaf-indirect", "gradient-l1", "gradient-l2")
@@ -75,9 +75,9 @@ def main():
                                     max_depth=setup.max_depth)
         methods = [method for method in (get_method(row, grid_shape=context.grid_shape) for row in member.methods)
                    if not method.baseline]
-        baseline.warm_up(context)
+        warm_up(baseline, context)
         for method in methods:
-            method.warm_up(context)
+            warm_up(method, context)
         for spp in spps:
             runs = {method.label: [] for method in methods}
             pt_equal_paths = {method.label: [] for method in methods}

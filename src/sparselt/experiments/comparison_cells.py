@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..methods import TIME_PHASES, Budget, run_timed
+from ..methods import TIME_PHASES, Budget, run_timed, warm_up
 from ..methods.contract import check_result
 from ..methods.variants import variant_file_name
 from .equal_time import NOISY_TIMING_RATIO
@@ -253,7 +253,7 @@ class CellRunner:
         context = self.context
         if row not in self.warm_up_seconds:
             warm_start = time.perf_counter()
-            method.warm_up(context)
+            warm_up(method, context)
             self.warm_up_seconds[row] = time.perf_counter() - warm_start
             self.seconds += self.warm_up_seconds[row]
         budget = Budget(spp=spp, seed=seed)

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..checks import check_integer, check_positive_finite
 from ..images import reference_exposure
-from ..methods.base import Budget, ComparisonContext, run_timed
+from ..methods.base import Budget, ComparisonContext, run_timed, warm_up
 from ..methods.registry import get_method
 from ..methods.options import resolve_options
 from ..methods.sft_reconstruction import SftOptions, reconstruct
@@ -188,7 +188,7 @@ def _run_table61(folder, config, spec, scene, layout, sparsity, say, progress):
     pt = get_method("pt")
     base = ComparisonContext(scene=scene, layout=layout, kind=config.kind, grid_shape=tuple(config.shape),
                              resolution=resolution, max_depth=config.max_depth)
-    pt.warm_up(base)
+    warm_up(pt, base)
     pixels = resolution[0] * resolution[1]
     pt_rate = _pt_rate(pt, base, pixels, config.seed)
 

@@ -31,7 +31,8 @@ for declared options, :mod:`sparselt.methods.preconditions` for requirements,
 for the checks every method passes.
 """
 
-from .base import TIME_PHASES, WARM_UP_SEED, Budget, ComparisonContext, Method, MethodResult, PhaseTimer, run_timed
+from .base import (TIME_PHASES, WARM_UP_SEED, Budget, ComparisonContext, Method, MethodResult, PhaseTimer, run_timed,
+                   warm_up)
 from .options import MethodOptions, Option, option, resolve_options
 from .preconditions import (
     FilmResolution,
@@ -59,4 +60,5 @@ __all__ = ["ENTRY_POINT_GROUP", "TIME_PHASES", "WARM_UP_SEED", "Budget", "Compar
            "Method", "MethodOptions", "MethodResult", "MethodSetup", "MinimumSpp", "Option", "PhaseTimer",
            "PluginError", "Requirement", "ResolutionMultiple", "ThinLens", "TileDividesGrid", "baseline_name",
            "get_method", "load_plugins", "method_class", "method_names", "option", "parse_method_variant",
-           "register", "resolve_method_options", "resolve_options", "run_timed", "variant_file_name"]
+           "register", "resolve_method_options", "resolve_options", "run_timed", "variant_file_name",
+           "warm_up"]

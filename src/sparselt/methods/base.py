@@ -20,6 +20,7 @@ touching the harness.
 from __future__ import annotations
 
 import dataclasses
+import gc
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -240,6 +241,22 @@ class Method:
         raise NotImplementedError
 
 
+def warm_up(method, context):
+    """Compile ``method``'s kernels for ``context`` (:meth:`Method.warm_up`) after freeing what is garbage.
+
+    Dr.Jit writes the live instances of a Mitsuba plugin class (every BSDF,
+    every emitter) into the code of a kernel that calls them, so freeing a
+    scene changes the kernels of every other scene. Measured: a comparison
+    on a scene file, then ``aaf-indirect`` on cornell-box in the same
+    process, compiled two kernels inside its first timed run because the
+    first scene was collected between the warm-up and the run. Collecting
+    first makes the warm-up's kernels the ones the runs use; :func:`run_timed`
+    collects again before each run and keeps the collector off inside it.
+    """
+    gc.collect()
+    method.warm_up(context)
+
+
 def run_timed(method, context, budget):
     """Run ``method`` at ``budget`` with a fresh :class:`PhaseTimer`: the result carries the timer's seconds.
 
@@ -253,7 +270,14 @@ def run_timed(method, context, budget):
         phases in the timer it was given).
     """
     timer = PhaseTimer()
-    result = method.run(context, budget, timer)
+    gc.collect()  # what earlier runs or scenes left is freed here, not inside the run (see warm_up)
+    collecting = gc.isenabled()
+    gc.disable()  # as timeit: no collection pause inside a timed run
+    try:
+        result = method.run(context, budget, timer)
+    finally:
+        if collecting:
+            gc.enable()
     if not isinstance(result, MethodResult):
         return result  # check_result names it
     if result.seconds is not None:

@@ -34,7 +34,7 @@ import time
 import numpy as np
 
 from ..rendering.mitsuba.launch import count_samples
-from .base import TIME_PHASES, MethodResult, run_timed
+from .base import TIME_PHASES, MethodResult, run_timed, warm_up
 from .options import resolve_options
 from .preconditions import MethodSetup, SupportedKind
 
@@ -136,7 +136,7 @@ def check_method(method, context, budget):
     for requirement in method.requirements():  # all but the kind: the contract runs every method on one context
         if not isinstance(requirement, SupportedKind):
             requirement.check(method, setup)
-    method.warm_up(context)
+    warm_up(method, context)
     runs = []
     for _ in range(2):
         with count_samples() as counted:

@@ -59,6 +59,7 @@ light, ``D = 3`` one indirect bounce):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ..checks import check_integer
@@ -238,3 +239,43 @@ def default_shape(kind, max_depth, resolution):
     """
     axes = path_layout(kind, max_depth, thin_lens=True).axes  # the axes do not depend on the lens
     return tuple(int(size) for size in resolution) + (DEFAULT_AXIS_CELLS[kind],) * (len(axes) - 2)
+
+
+#: The most cells a signal grid may have: kernels index cells with 32-bit integers.
+MAXIMUM_GRID_CELLS = 2**32 - 1
+
+
+def check_indexable_grid(grid_shape, *, advice="give a coarser --shape, or a smaller --max-depth"):
+    """Refuse a signal grid whose flat cell index does not fit the kernels' 32 bits.
+
+    A kind's default grid on a deep ``path`` layout (4 cells per axis, 4 axes
+    per bounce) passes :data:`MAXIMUM_GRID_CELLS` after a few bounces: the
+    samples do not depend on the grid, but a flat cell index would wrap.
+    Methods that bin samples into the grid ask for cells; the others draw
+    without them.
+
+    Raises
+    ------
+    ValueError
+        The grid has more than :data:`MAXIMUM_GRID_CELLS` cells; the message
+        names the grid, its cell count and ``advice``.
+    """
+    shape = tuple(int(size) for size in grid_shape)
+    cells = math.prod(shape)
+    if cells > MAXIMUM_GRID_CELLS:
+        raise ValueError(f"the signal grid {shape} has {cells:.3g} cells; at most 2**32 - 1 can be indexed "
+                         f"({advice})")
+
+
+def grid_strides(grid_shape):
+    """Row-major strides of ``grid_shape``: a cell's flat index is ``sum(coordinate * stride)`` over the axes.
+
+    Examples
+    --------
+    >>> grid_strides((4, 3, 2))
+    (6, 2, 1)
+    """
+    strides = [1]
+    for size in tuple(grid_shape)[:0:-1]:
+        strides.append(strides[-1] * int(size))
+    return tuple(strides[::-1])

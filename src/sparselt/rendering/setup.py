@@ -15,13 +15,12 @@ This module is plain Python; only :meth:`SceneSetup.load` imports the renderer.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
 from ..checks import check_integer
 from ..digest import digest
-from .layout import KINDS, default_shape, path_layout
+from .layout import KINDS, check_indexable_grid, default_shape, path_layout
 from .mitsuba.runtime import DEFAULT_VARIANT, SUPPORTED_VARIANTS  # plain constants: imports no Mitsuba
 from .scenes import SceneSpec, get_scene
 
@@ -153,9 +152,7 @@ class SceneSetup:
                 raise ValueError(f"shape {self.shape} needs at least the two image-plane axes")
             for size in self.shape:
                 check_integer("every shape entry", size, 1)
-            cells = math.prod(self.shape)
-            if cells >= 2**32:
-                raise ValueError(f"shape {self.shape} has {cells} cells; at most 2**32 - 1 are supported")
+            check_indexable_grid(self.shape, advice="give a coarser --shape")
         return self
 
     def validate(self):

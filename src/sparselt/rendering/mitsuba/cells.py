@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..layout import grid_strides
 from .integrand import path_contribution, zero_nonfinite
 from .lanes import ONE_MINUS_EPSILON, item_lanes
 from .launch import launch
@@ -54,7 +55,7 @@ def sample_cells(scene, layout, grid_shape, first_cell, cell_count, spp, seed, *
         mi, dr = modules()
         items = None if cells is None else to_device(mi.UInt32, cells, np.uint32)
         cell, generator, _ = item_lanes(cell_count, spp, folded_seed, first=first_cell, items=items)
-        strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1]
+        strides = grid_strides(grid_shape)
         axis_of = {name: position for position, name in enumerate(layout.axes)}
         samples = {}
         for name in layout.dimensions:

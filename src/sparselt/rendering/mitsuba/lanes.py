@@ -17,10 +17,10 @@ statistically good algorithms for random number generation" (2014).
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
+from ..layout import check_indexable_grid, grid_strides
 from .readback import to_device
 from .runtime import modules
 
@@ -92,7 +92,7 @@ def pss_vector(layout, grid_shape, generator, pixel_x, pixel_y, film_size, *, ce
     film_width, film_height = film_size
     if cell:
         check_indexable_grid(grid_shape)
-    strides = np.cumprod((1,) + tuple(grid_shape[:0:-1]))[::-1] if cell else None
+    strides = grid_strides(grid_shape) if cell else None
     axis_of = {name: position for position, name in enumerate(layout.axes)}
     samples = {}
     flat_cell = mi.UInt32(0) if cell else None
@@ -109,21 +109,6 @@ def pss_vector(layout, grid_shape, generator, pixel_x, pixel_y, film_size, *, ce
             flat_cell += coordinate * dr.opaque(mi.UInt32, int(strides[position]))
         samples[name] = uniform
     return samples, flat_cell
-
-
-def check_indexable_grid(grid_shape):
-    """Refuse a signal grid whose flat cell index does not fit the kernels' 32 bits.
-
-    A kind's default grid on a deep ``path`` layout (4 cells per axis, 4 axes
-    per bounce) passes 2**32 cells after a few bounces: the samples do not
-    depend on the grid, but a flat cell index would wrap. Methods that bin
-    samples into the grid ask for cells; the others draw without them.
-    """
-    cells = math.prod(int(size) for size in grid_shape)
-    if cells >= 2**32:
-        raise ValueError(f"the signal grid {tuple(int(size) for size in grid_shape)} has {cells:.3g} cells: a method "
-                         "that bins samples into it needs at most 2**32 - 1 (give a coarser --shape, or a smaller "
-                         "--max-depth)")
 
 
 def in_pixel(pixel, uniform, size):

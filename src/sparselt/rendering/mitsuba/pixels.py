@@ -58,7 +58,7 @@ def sample_pixels(scene, layout, grid_shape, spp, seed, first_pixel=0, pixel_cou
     cells : bool, optional
         Whether to compute each sample's grid cell (False: ``cells`` is
         None, the samples are the same). A grid of 2**32 cells or more
-        cannot be indexed (:func:`~sparselt.rendering.mitsuba.lanes.check_indexable_grid`).
+        cannot be indexed (:func:`~sparselt.rendering.layout.check_indexable_grid`).
 
     Returns
     -------
