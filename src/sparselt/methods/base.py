@@ -250,8 +250,9 @@ def warm_up(method, context):
     on a scene file, then ``aaf-indirect`` on cornell-box in the same
     process, compiled two kernels inside its first timed run because the
     first scene was collected between the warm-up and the run. Collecting
-    first makes the warm-up's kernels the ones the runs use; :func:`run_timed`
-    collects again before each run and keeps the collector off inside it.
+    first makes the warm-up's kernels the ones the runs use; the harness
+    collects again before each run's clock starts, and :func:`run_timed` keeps
+    the collector off inside the run.
     """
     gc.collect()
     method.warm_up(context)
@@ -270,7 +271,6 @@ def run_timed(method, context, budget):
         phases in the timer it was given).
     """
     timer = PhaseTimer()
-    gc.collect()  # what earlier runs or scenes left is freed here, not inside the run (see warm_up)
     collecting = gc.isenabled()
     gc.disable()  # as timeit: no collection pause inside a timed run
     try:
