@@ -477,3 +477,53 @@ def test_held_out_choice_keeps_the_default_estimator_within_noise():
             (label, _), _ = held_out_choice(estimators, significance=significance)
             switched[significance] += label == "other"
     assert switched[0.0] >= 5 and switched[2.0] <= 3, switched
+
+
+# The held-out check of the L1 solve (issue 37, sixth session: no gain, no extra cost).
+
+def _halves_with(image, generator, gradient_noise, primal_noise=0.2):
+    exact = forward_differences(image)
+    return [(image + primal_noise * generator.standard_normal(image.shape),)
+            + tuple(g + gradient_noise(generator, g.shape) for g in exact) for _ in range(2)]
+
+
+def test_held_out_l1_check_takes_l1_for_outlying_gradients_and_l2_for_gaussian_ones():
+    """Sparse large gradient errors (fireflies): L1 is far better and the check takes it; Gaussian gradient noise
+    (L2's own model): L1 is no better, the check keeps L2. Its choice agrees with the true errors of the halves."""
+    from sparselt.recovery.poisson import held_out_l1_check, screened_poisson, screened_poisson_l1
+
+    image, generator = _smooth_image(64, seed=7)
+
+    def outliers(rng, shape):
+        return np.where(rng.random(shape) < 0.02, 5.0 * rng.standard_normal(shape), 0.0)
+
+    def gaussian(rng, shape):
+        return 0.2 * rng.standard_normal(shape)
+
+    for noise, expected in ((outliers, True), (gaussian, False)):
+        halves = _halves_with(image, generator, noise)
+        use_l1, record = held_out_l1_check(halves, 0.4)
+        true = [sum(np.sum(np.square(solve(*half, alpha=0.4).estimate - image)) for half in halves)
+                for solve in (screened_poisson_l1, screened_poisson)]
+        assert use_l1 == expected and bool(true[0] < true[1]) == expected, (noise.__name__, record, true)
+        assert use_l1 == (record["difference"] < -2 * record["standard_error"])
+    with pytest.raises(ValueError, match="finite alpha"):
+        held_out_l1_check(halves, float("inf"))
+
+
+def test_gradient_l1_is_its_l1_or_l2_image_as_the_check_says(scene, layout):
+    """gradient-l1 records the check; its image is bit for bit gradient-l2's where the check keeps L2 and the
+    unchecked L1 image where it takes L1; 'always' skips the check; every path counted as before."""
+    context = _context(scene, layout)
+    budget = Budget(spp=8, seed=11)
+    checked = run_timed(get_method("gradient-l1"), context, budget)
+    check = checked.details["l1_check"]
+    assert check["iterations"] >= 1 and np.isfinite(check["difference"]) and check["standard_error"] > 0
+    assert checked.details["solver_used"] == ("l1" if check["difference"] < -2 * check["standard_error"] else "l2")
+    always = run_timed(get_method("gradient-l1:l1_check=always"), context, budget)
+    assert always.details["l1_check"] is None and always.details["solver_used"] == "l1"
+    l2 = run_timed(get_method("gradient-l2"), context, budget)
+    assert checked.details["alpha"] == always.details["alpha"] == l2.details["alpha"]
+    same_as = always if checked.details["solver_used"] == "l1" else l2
+    np.testing.assert_array_equal(checked.image, same_as.image)
+    assert checked.path_samples == always.path_samples == l2.path_samples
