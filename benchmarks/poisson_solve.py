@@ -19,6 +19,13 @@ plain iterations, 1500 by default; Kettunen et al. 2015's L1 objective).
     .venv/bin/python benchmarks/poisson_solve.py [--repeats 5] [--reference 1500] [--large]
 
 ``--large`` adds 1024x576 (its reference run alone takes tens of seconds).
+
+Then, per size, ``gradient-l1``'s held-out check
+(:func:`~sparselt.recovery.poisson.held_out_l1_check` on two halves of the
+problem, 6 ADMM iterations each, and two L2 solves) against one full L1 solve
+with the defaults: the check's cost where it keeps the L1 solve (check + solve)
+and what it saves where it keeps the L2 image (check + one L2 solve), as
+fractions of the full solve.
 """
 
 from __future__ import annotations
@@ -30,7 +37,8 @@ import time
 import numpy as np
 
 from sparselt import kernels
-from sparselt.recovery.poisson import PLAIN_ADMM, forward_differences, l1_objective, screened_poisson_l1
+from sparselt.recovery.poisson import (PLAIN_ADMM, forward_differences, held_out_l1_check, l1_objective,
+                                      screened_poisson, screened_poisson_l1)
 
 BUDGET = {"max_iterations": 50, "tolerance": 1e-3}  # gradient-l1's defaults
 
@@ -85,6 +93,19 @@ def main():
             print(f"    {name}: {median[name]:.4f} s (min {min(times[name]):.4f}), {results[name].iterations} "
                   f"iterations ({results[name].stop_reason}), objective {gap:+.2e} relative to the reference")
         print(f"    old / new: {median['old'] / median['new']:.2f}x")
+        halves = [noisy_problem(height, width, seed=seed) for seed in (1, 2)]
+        steps = {"check": lambda: held_out_l1_check(halves, 0.2),
+                 "l1": lambda: screened_poisson_l1(*problem, **BUDGET),
+                 "l2": lambda: screened_poisson(*problem, alpha=0.2)}
+        seconds = {name: [] for name in steps}
+        for step in steps.values():
+            step()  # warm-up
+        for _ in range(arguments.repeats):
+            for name, step in steps.items():
+                seconds[name].append(_timed(step)[0])
+        check, l1, l2 = (statistics.median(seconds[name]) for name in steps)
+        print(f"    held-out L1 check: {check:.4f} s; L2 solve {l2:.4f} s; where the check keeps L1 it costs "
+              f"{(check + l1) / l1:.2f}x the L1 solve alone, where it keeps L2 {(check + l2) / l1:.2f}x")
 
 
 if __name__ == "__main__":

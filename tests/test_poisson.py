@@ -121,7 +121,7 @@ def test_l1_iterations_do_not_depend_on_the_image_scale():
     np.testing.assert_allclose(scaled.estimate, 1000.0 * one.estimate, rtol=1e-8, atol=1e-8)
     one, scaled = screened_poisson_l1(noisy, *gradients), screened_poisson_l1(1000.0 * noisy, *[1000.0 * g for g in gradients])
     assert np.linalg.norm(scaled.estimate - 1000.0 * one.estimate) < 1e-2 * np.linalg.norm(1000.0 * one.estimate)
-    with pytest.raises(ValueError, match="start must be 'primal' or 'l2'"):
+    with pytest.raises(ValueError, match="start must be 'primal', 'l2' or an image"):
         screened_poisson_l1(noisy, *gradients, start="zero")
 
 
@@ -270,3 +270,14 @@ def test_the_stop_reason_and_iterations_are_truthful():
 def test_bad_l1_options_are_refused(arguments, message):
     with pytest.raises(ValueError, match=message):
         screened_poisson_l1(np.zeros((6, 8)), np.zeros((6, 7)), np.zeros((5, 8)), **arguments)
+
+
+def test_l1_from_a_given_start_image_is_the_l1_from_the_same_image_computed_inside():
+    """start=<the L2 solution> takes the same steps as start='l2'; a start of another shape is refused."""
+    primal, gradient_x, gradient_y = _noisy_problem(4, shape=(24, 20, 3))
+    l2 = screened_poisson(primal, gradient_x, gradient_y, alpha=0.3).estimate
+    inside = screened_poisson_l1(primal, gradient_x, gradient_y, alpha=0.3, max_iterations=7)
+    given = screened_poisson_l1(primal, gradient_x, gradient_y, alpha=0.3, max_iterations=7, start=l2)
+    np.testing.assert_array_equal(given.estimate, inside.estimate)
+    with pytest.raises(ValueError, match="a start image must have the primal's shape"):
+        screened_poisson_l1(primal, gradient_x, gradient_y, start=l2[:-1])

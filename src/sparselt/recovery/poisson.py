@@ -304,7 +304,7 @@ def _score_weights(image, epsilon):
 
 
 #: :func:`held_out_l1_check`'s ADMM iterations on each half (the full solve's default is at most 50).
-L1_CHECK_ITERATIONS = 8
+L1_CHECK_ITERATIONS = 6
 
 
 def held_out_l1_check(halves, alpha, *, iterations=L1_CHECK_ITERATIONS, epsilon=1e-2, significance=2.0,
@@ -364,10 +364,9 @@ def held_out_l1_check(halves, alpha, *, iterations=L1_CHECK_ITERATIONS, epsilon=
     (primal_a, *gradients_a), (primal_b, *gradients_b) = halves
     l2_images = (screened_poisson(primal_a, *gradients_a, alpha=alpha).estimate,
                  screened_poisson(primal_b, *gradients_b, alpha=alpha).estimate)
-    l1_images = (screened_poisson_l1(primal_a, *gradients_a, alpha=alpha, max_iterations=iterations,
-                                     **l1_options).estimate,
-                 screened_poisson_l1(primal_b, *gradients_b, alpha=alpha, max_iterations=iterations,
-                                     **l1_options).estimate)
+    l1_images = tuple(screened_poisson_l1(primal, *gradients, alpha=alpha, max_iterations=iterations, start=l2,
+                                          **l1_options).estimate
+                      for (primal, *gradients), l2 in zip(halves, l2_images))
     weights = _score_weights(0.5 * (l2_images[0] + l2_images[1]), epsilon)
     judges = (np.asarray(primal_b, dtype=np.float64), np.asarray(primal_a, dtype=np.float64))
     terms = sum(weights * (np.square(l1 - judge) - np.square(l2 - judge))
@@ -449,10 +448,11 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
         history of this ratio is the result's ``residual_history``).
     max_iterations : int
         Stop after this many iterations in any case.
-    start : {'l2', 'primal'}
+    start : {'l2', 'primal'} or ndarray
         The first iterate: the L2 solution (the default: one more DCT solve,
-        :func:`screened_poisson`, usually close to the L1 minimiser) or the
-        primal image (the first version's default).
+        :func:`screened_poisson`, usually close to the L1 minimiser), the
+        primal image (the first version's default), or an image of the
+        primal's shape (e.g. the L2 solution computed already).
     relaxation : float
         ADMM's over-relaxation ``r`` in ``(0, 2)`` (Boyd et al. 2011,
         3.4.3): the ``z`` and dual steps see ``r H I + (1 - r) (z + b)``
@@ -531,8 +531,11 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
         raise ValueError(f"tolerance must be a positive finite number, got {tolerance!r}")
     if int(max_iterations) < 1:
         raise ValueError(f"max_iterations must be at least 1, got {max_iterations!r}")
-    if start not in ("primal", "l2"):
-        raise ValueError(f"start must be 'primal' or 'l2', got {start!r}")
+    if isinstance(start, np.ndarray):
+        if start.shape != primal.shape:
+            raise ValueError(f"a start image must have the primal's shape {primal.shape}, got {start.shape}")
+    elif start not in ("primal", "l2"):
+        raise ValueError(f"start must be 'primal', 'l2' or an image, got {start!r}")
     if not (np.isfinite(relaxation) and 0 < relaxation < 2):
         raise ValueError(f"relaxation must be in (0, 2) (1: plain ADMM), got {relaxation!r}")
     if precision not in ("single", "double"):
@@ -547,7 +550,12 @@ def screened_poisson_l1(primal, gradient_x, gradient_y, *, alpha=DEFAULT_ALPHA, 
         differences = forward_differences(image)
         return (alpha * image,) + differences
 
-    image = primal.copy() if start == "primal" else screened_poisson(primal, gradient_x, gradient_y, alpha=alpha).estimate
+    if isinstance(start, np.ndarray):
+        image = np.asarray(start, dtype=np.float64)
+    elif start == "primal":
+        image = primal.copy()
+    else:
+        image = screened_poisson(primal, gradient_x, gradient_y, alpha=alpha).estimate
     residual = [h - b for h, b in zip(apply(image), targets)]
     z = [_soft(r, 1.0 / penalty) for r in residual]
     u = [r - zz for r, zz in zip(residual, z)]
