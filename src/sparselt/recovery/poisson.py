@@ -349,13 +349,18 @@ def held_out_l1_check(halves, alpha, *, iterations=L1_CHECK_ITERATIONS, epsilon=
     for both reconstructions of a half, so it cancels in the *paired*
     difference, unlike the comparison of two estimators with their own
     samples (:func:`held_out_choice`), whose scores share only part of it.
-    Measured on the standard suite at 256x256 (issue 37, sixth session,
-    ``docs/experiments/ablation-l1-check``): the L1 image was worse than the
-    L2 one on outdoor-texture (sky and texture under sunlight: L1's median
-    bias, 4% darker) and at 64 spp on dof-sculptures and cornell-box, better
-    elsewhere; the paired held-out difference had the same sign, 1.3-8
-    standard errors from 0, wherever the true relMSE ratio was more than 3%
-    from 1.
+    Studied on the standard suite's scenes at 256x256 before it was adopted
+    (issue 37, sixth session; ``docs/experiments/suite-l1-check/study``, 3
+    seeds, 5 iterations a half), in standard errors of the difference: L1
+    better at -2.5 to -13 on cornell-box, courtyard, mirror-room,
+    thin-geometry and glass-caustic (and dof-sculptures at 16 spp), where
+    the full L1 image's trimmed relMSE was 0.26-0.98 of the L2 one's
+    (``study-l1-iterations``; cornell-box from this study); L1
+    worse at +0.6 to +2.2 (16 spp) and +7.7 to +8.5 (64 spp) on
+    outdoor-texture and +5.4 to +6.7 on dof-sculptures at 64 spp, where it
+    was 1.03-1.07; -2.2 to +1.4 on cornell-box at 64 spp, where it was
+    1.00-1.02. The check costs about one 24-iteration L1 solve (two halves'
+    setups and iterations); the suite measures whether it pays.
     """
     if not np.isfinite(alpha):
         raise ValueError(f"held_out_l1_check needs a finite alpha, got {alpha!r}")
