@@ -234,8 +234,9 @@ class GradientL1Options(GradientOptions):
     l1_check: str = option("held-out", choices=("held-out", "always"),
                            help="'held-out': the L1 solve only where each half's L1 image (check_iterations) "
                                 "predicts the other half's primal image better than its L2 image by more than 2 "
-                                "standard errors, else the L2 image (one DCT); 'always': the L1 solve, as in the "
-                                "paper (needs alpha_choice='held-out' for the halves)")
+                                "standard errors, else the L2 image (one DCT); it needs the held-out halves "
+                                "(alpha_choice='held-out', shift other than 'auto'), without them the L1 solve runs; "
+                                "'always': the L1 solve, as in the paper")
     check_iterations: int = option(L1_CHECK_ITERATIONS, minimum=1, help="ADMM iterations of each half's L1 solve in "
                                    "the held-out check")
 
