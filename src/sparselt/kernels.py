@@ -246,7 +246,19 @@ def _compiled():
                             u2[y, x, c] = clipped
             return change, norm
 
-        _KERNELS = {"admm_right_hand_side": admm_right_hand_side, "admm_update": admm_update,
+        @numba.njit(parallel=True, cache=True)
+        def held_out_terms(first, first_judge, second, second_judge, weights, out):
+            height, width, channels = first.shape
+            for y in numba.prange(height):
+                for x in range(width):
+                    total = 0.0
+                    for c in range(channels):
+                        step = float(first[y, x, c]) - float(first_judge[y, x, c])
+                        other = float(second[y, x, c]) - float(second_judge[y, x, c])
+                        total += step * step + other * other
+                    out[y, x] = weights[y, x] * total
+
+        _KERNELS = {"held_out_terms": held_out_terms, "admm_right_hand_side": admm_right_hand_side, "admm_update": admm_update,
                     "admm_relaxed_update": admm_relaxed_update, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked,
                     "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
@@ -494,6 +506,31 @@ def admm_relaxed_update(image, previous, targets, z, u, alpha, threshold, relaxa
                                               float(threshold), float(relaxation))
 
 
+def held_out_terms(first, first_judge, second, second_judge, weights):
+    """A held-out score's per-pixel terms ``w * sum over channels of ((A - J_A)^2 + (B - J_B)^2)``, on every core.
+
+    ``first``, ``second`` (two reconstructions) and their judges share one
+    shape ``(height, width, ...)``, float32 or float64; ``weights`` is
+    ``(height, width)`` or ``(height, width, 1)``. The differences and sums
+    are float64. Returns a new float64 array ``(height, width, 1)`` (the
+    terms of :func:`~sparselt.recovery.poisson.held_out_choice` and
+    :func:`~sparselt.recovery.poisson.held_out_l1_check`; their NumPy
+    expressions, summed over channels in another order: equal to rounding).
+    """
+    height, width = first.shape[:2]
+
+    def flat(array):
+        array = np.asarray(array)
+        if array.dtype not in (np.float32, np.float64):
+            array = array.astype(np.float64)
+        return np.ascontiguousarray(array).reshape(height, width, -1)
+
+    out = np.empty((height, width), dtype=np.float64)
+    _compiled()["held_out_terms"](flat(first), flat(first_judge), flat(second), flat(second_judge),
+                                  np.ascontiguousarray(weights, dtype=np.float64).reshape(height, width), out)
+    return out.reshape(height, width, 1)
+
+
 _WARM = False
 
 
@@ -528,6 +565,9 @@ def warm_up():
         admm_relaxed_update(np.zeros((3, 3, 1), dtype=real), np.zeros((3, 3, 1), dtype=real), parts,
                             [part.copy() for part in parts], [part.copy() for part in parts], 1.0, 1.0, 1.6)
     ordered_sums(np.zeros(4, dtype=np.uint32), [np.zeros(4, dtype=np.float32)] * 3, 4)
+    for image in (np.float32, np.float64):  # the held-out scores: float32 images (the alpha family), float64 (L1)
+        held_out_terms(np.zeros((2, 2, 1), dtype=image), np.zeros((2, 2, 1)), np.zeros((2, 2, 1), dtype=image),
+                       np.zeros((2, 2, 1)), np.ones((2, 2)))
     for weights in (np.zeros(4, dtype=np.float32), np.zeros(4, dtype=np.float64)):
         pixel_block_cell_sums(np.zeros(4, dtype=np.int64), weights, 1, (2, 2), (2, 2, 1))
     slots = np.zeros(size, dtype=np.int32)

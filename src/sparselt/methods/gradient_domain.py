@@ -272,14 +272,17 @@ def gradient_estimates(sums, spp, pairs=None, replayed=None):
     gradient_y : ndarray, shape (height - 1, width, 3)
         The same along ``y``.
     """
-    sums = np.asarray(sums, dtype=np.float64)
+    sums = np.asarray(sums)
+    if sums.dtype not in (np.float32, np.float64):
+        sums = sums.astype(np.float64)
     height, width, paths, _ = sums.shape
     shifts = GRADIENT_SHIFTS[paths - 1]
     if pairs is not None:
         replayed_estimates = gradient_estimates(replayed, spp)
         tail_estimates = _pair_estimates(np.asarray(pairs, dtype=np.float64), spp, shifts)
         return tuple(first + second for first, second in zip(replayed_estimates, tail_estimates))
-    base = sums[:, :, 0]
+    # Accumulated in float64 from the sums' own precision (in place: no float64 copy of every path's sums).
+    base = sums[:, :, 0].astype(np.float64)
     primal = base.copy()
     landed = np.ones((height, width))
     gradients = {"x": [np.zeros((height, width - 1, 3)), 0], "y": [np.zeros((height - 1, width, 3)), 0]}
@@ -290,8 +293,13 @@ def gradient_estimates(sums, spp, pairs=None, replayed=None):
         landed[target] += 1.0
         axis = "x" if dx else "y"
         # A +1 shift estimates I(base + 1) - I(base) at the base; a -1 shift, I(base) - I(base - 1) at base - 1.
-        difference = (offset - base)[source] if dx + dy > 0 else (base - offset)[source]
-        gradients[axis][0] += difference
+        gradient = gradients[axis][0]
+        if dx + dy > 0:
+            gradient += offset[source]
+            gradient -= base[source]
+        else:
+            gradient -= offset[source]
+            gradient += base[source]
         gradients[axis][1] += 1
     primal /= spp * landed[..., None]
     gradient_x = gradients["x"][0] / (spp * gradients["x"][1])
@@ -375,14 +383,21 @@ def _score_key(key):
     return str(key) if not isinstance(key, tuple) else f"{key[0]}:{key[1]}"
 
 
-def _merged(parts):
-    """One :class:`~sparselt.rendering.mitsuba.gradients.GradientSamples` of several draws: their sums added."""
+#: :class:`~sparselt.rendering.mitsuba.gradients.GradientSamples`' per-path sums (the estimates' inputs).
+PATH_SUMS = ("sums", "replayed", "pairs")
+
+
+def _merged(parts, *, paths=True):
+    """One :class:`~sparselt.rendering.mitsuba.gradients.GradientSamples` of several draws: their sums added
+    (without ``paths``, :data:`PATH_SUMS` are left None: the caller estimates from the parts)."""
     if len(parts) == 1:
         return parts[0]
 
     def total(name):
         values = [getattr(part, name) for part in parts]
-        return None if values[0] is None else sum(values[1:], values[0])
+        if values[0] is None or (not paths and name in PATH_SUMS):
+            return None
+        return sum(values[1:], values[0])
 
     return parts[0]._replace(**{name: total(name) for name in parts[0]._fields})
 
@@ -436,13 +451,20 @@ class _GradientDomain(Method):
             part_spps = (budget.spp // 2, budget.spp - budget.spp // 2) if held_out else None
             alpha, scores = options.alpha, None
         with timer("integration"):
-            samples = _merged(drawn)
+            # With halves, the estimates of all the samples are the halves' weighted by their spp (the estimates
+            # are linear in the sums), so the path sums are not added up.
+            samples = _merged(drawn, paths=not part_spps)
             demodulate = options.demodulation == "albedo"
             albedo, divisors = (demodulation_divisors(samples.albedo, budget.spp, options.albedo_floor)
                                 if demodulate else (None, None))
-            primal, gradient_x, gradient_y = _estimates(samples, budget.spp, separate, divisors)
-            halves = [_estimates(part, spp, separate, divisors) for part, spp in zip(drawn, part_spps)] \
-                if part_spps else None
+            if part_spps:
+                halves = [_estimates(part, spp, separate, divisors) for part, spp in zip(drawn, part_spps)]
+                primal, gradient_x, gradient_y = (
+                    (part_spps[0] * first + part_spps[1] * second) / budget.spp
+                    for first, second in zip(*halves))
+            else:
+                halves = None
+                primal, gradient_x, gradient_y = _estimates(samples, budget.spp, separate, divisors)
         with timer("reconstruction"):
             if halves:
                 alpha, scores = held_out_alpha(halves)
