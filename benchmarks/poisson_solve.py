@@ -26,6 +26,12 @@ problem, 6 ADMM iterations each, and two L2 solves) against one full L1 solve
 with the defaults: the check's cost where it keeps the L1 solve (check + solve)
 and what it saves where it keeps the L2 image (check + one L2 solve), as
 fractions of the full solve.
+
+Last, per size, the held-out choice of alpha
+(:func:`~sparselt.recovery.poisson.held_out_alpha`, both gradient methods):
+its family of L2 images (8 alphas, one half) in float64 (SciPy's DCTs, the
+first version) against float32 (ducc0's, what the choice uses), and the
+whole choice on two halves.
 """
 
 from __future__ import annotations
@@ -37,8 +43,9 @@ import time
 import numpy as np
 
 from sparselt import kernels
-from sparselt.recovery.poisson import (PLAIN_ADMM, forward_differences, held_out_l1_check, l1_objective,
-                                      screened_poisson, screened_poisson_l1)
+from sparselt.recovery.poisson import (HELD_OUT_ALPHAS, PLAIN_ADMM, forward_differences, held_out_alpha,
+                                      held_out_l1_check, l1_objective, screened_poisson, screened_poisson_family,
+                                      screened_poisson_l1)
 
 BUDGET = {"max_iterations": 50, "tolerance": 1e-3}  # gradient-l1's defaults
 
@@ -106,6 +113,19 @@ def main():
         check, l1, l2 = (statistics.median(seconds[name]) for name in steps)
         print(f"    held-out L1 check: {check:.4f} s; L2 solve {l2:.4f} s; where the check keeps L1 it costs "
               f"{(check + l1) / l1:.2f}x the L1 solve alone, where it keeps L2 {(check + l2) / l1:.2f}x")
+        steps = {precision: (lambda precision=precision: screened_poisson_family(*halves[0], HELD_OUT_ALPHAS,
+                                                                                 precision=precision))
+                 for precision in ("double", "single")}
+        steps["choice"] = lambda: held_out_alpha(halves)
+        seconds = {name: [] for name in steps}
+        for step in steps.values():
+            step()  # warm-up
+        for _ in range(arguments.repeats):
+            for name, step in steps.items():
+                seconds[name].append(_timed(step)[0])
+        double, single, choice = (statistics.median(seconds[name]) for name in steps)
+        print(f"    held-out alpha: family of {len(HELD_OUT_ALPHAS)} L2 images float64 {double:.4f} s, float32 "
+              f"{single:.4f} s ({double / single:.2f}x); the whole choice on two halves {choice:.4f} s")
 
 
 if __name__ == "__main__":

@@ -262,7 +262,7 @@ def test_cli_reports_errors_with_exit_code(tmp_path, capsys):
 def test_cosamp_control_variate_is_unbiased(tmp_path, cache):
     """Per seed, cosamp minus samples-mean (same samples) has zero mean: |mean| < 4 standard errors."""
     seeds = tuple(range(1, 11))
-    result = compare(tiny(methods=("samples-mean", "cosamp"), spps=(8,), seeds=seeds,
+    result = compare(tiny(methods=("samples-mean", "cosamp"), spps=(8,), seeds=seeds, timing_repeats=1,
                           options={"cosamp": {"sparsity": 100}}), tmp_path / "unbiased",
                      progress=False, cache_directory=cache)
     ratio = {(r["method"], r["seed"]): r["luminance_ratio"] for r in result.rows}

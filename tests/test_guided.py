@@ -98,7 +98,7 @@ def test_guided_methods_in_a_comparison(tmp_path):
 
     config = ComparisonConfig(scene="cornell-box", kind="dof", shape=(16, 16, 4, 4), aperture=0.1, resolution=(32, 32),
                               methods=("pt", "guided-pilot", "guided-cosamp", "guided-bilateral"), spps=(8,),
-                              seeds=(1, 2), reference_spp=256,
+                              seeds=(1, 2), reference_spp=256, timing_repeats=1,
                               options={"*": {"gamma": 0.5, "sparsity": 20, "map_spp": 8}})
     result = compare(config, tmp_path / "guided", progress=False)
     rows = {(row["method"], row["seed"]): row for row in result.rows}

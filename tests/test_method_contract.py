@@ -119,15 +119,17 @@ def test_options_round_trip_through_compare_json_for_every_method(tmp_path):
     rows reach every table and the page."""
     rest = tuple(name for name in METHODS if name not in DOF_METHODS)
     assert rest and all("indirect" in method_class(name).kinds for name in rest)
+    # One seed, one timing run, a short PT ladder: the test is about options, not statistics or times.
+    quick = dict(seeds=(1,), timing_repeats=1, pt_ladder_max_spp=16)
     other = ComparisonConfig(scene="cornell-box", kind="indirect", shape=SHAPE, methods=("pt",) + rest, spps=(4,),
-                             reference_spp=16)
+                             reference_spp=16, **quick)
     compare(other, tmp_path / "indirect", progress=False)
     stored_other = json.loads((tmp_path / "indirect" / "compare.json").read_text())["methods"]
     for name, options in other.resolved_options().items():
         assert method_class(name).Options(**stored_other[name]["options"]) == options
     config = ComparisonConfig(scene="cornell-box", kind="dof", shape=SHAPE, methods=DOF_METHODS, spps=(4,),
                               aperture=0.1, focus_distance=1000.0, reference_spp=16,
-                              options={"median-of-means": {"groups": "3"}, "*": {"gamma": 0.5}})
+                              options={"median-of-means": {"groups": "3"}, "*": {"gamma": 0.5}}, **quick)
     resolved = config.resolved_options()
     result = compare(config, tmp_path / "all", progress=False)
     record = json.loads((tmp_path / "all" / "compare.json").read_text())

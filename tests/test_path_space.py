@@ -142,7 +142,8 @@ def test_sft_path_space_refuses_bad_input_before_sampling():
 
 def test_compare_method_sft_records_its_samples(tmp_path):
     config = ComparisonConfig(scene="cornell-box", kind="path", shape=SHAPE, methods=("pt", "sft"), spps=(1,),
-                              reference_spp=64, options={"sft": {"sparsity": 30}})
+                              seeds=(1,), timing_repeats=1, pt_ladder_max_spp=16, reference_spp=64,
+                              options={"sft": {"sparsity": 30}})
     result = compare(config, tmp_path / "c", progress=False)
     row = next(row for row in result.rows if row["method"] == "sft")
     assert 0 < row["path_samples"] <= math.prod(SHAPE)
@@ -152,7 +153,7 @@ def test_compare_method_sft_records_its_samples(tmp_path):
 
 def test_guided_sft_counts_its_map_samples(tmp_path):
     config = ComparisonConfig(scene="cornell-caustics", kind="path", shape=SHAPE, methods=("guided-sft",), spps=(2,),
-                              resolution=(32, 32), reference_spp=64,
+                              resolution=(32, 32), reference_spp=64, seeds=(1,), timing_repeats=1,
                               options={"guided-sft": {"sparsity": 30, "map_spp": 1, "mode": "global"}})
     result = compare(config, tmp_path / "g", progress=False)
     row = next(row for row in result.rows if row["method"] == "guided-sft")
