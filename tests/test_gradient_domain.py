@@ -375,6 +375,20 @@ def test_halves_are_the_samples_split_by_index(scene, layout, shift, spp):
         scene.sample_gradients(layout, _grid(layout), 1, 4, shift=shift, halves=True)
 
 
+def test_albedo_reductions_can_be_skipped_without_changing_the_sums(scene, layout):
+    """albedo=False (what the methods pass without demodulation): the same path sums bit for bit, albedo left 0;
+    the reconnection shift reduces it regardless."""
+    kept = scene.sample_gradients(layout, _grid(layout), 4, 9, halves=True)
+    skipped = scene.sample_gradients(layout, _grid(layout), 4, 9, halves=True, albedo=False)
+    for with_albedo, without in zip(kept, skipped):
+        np.testing.assert_array_equal(with_albedo.sums, without.sums)
+        np.testing.assert_array_equal(with_albedo.camera_emission, without.camera_emission)
+        assert with_albedo.nonfinite == without.nonfinite
+        assert np.any(with_albedo.albedo > 0) and not np.any(without.albedo)
+    reconnection = scene.sample_gradients(layout, _grid(layout), 2, 9, shift="reconnection", albedo=False)
+    assert np.any(reconnection.albedo > 0)
+
+
 # The per-image choice of shift (shift='auto', issue 37, third session).
 
 def test_held_out_choice_with_one_estimator_is_held_out_alpha():

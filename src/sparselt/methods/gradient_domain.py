@@ -446,7 +446,8 @@ class _GradientDomain(Method):
             # the estimates of all the samples are those of their summed sums.
             with timer("sampling"):
                 drawn = context.scene.sample_gradients(context.layout, context.grid_shape, budget.spp, budget.seed,
-                                                       offsets=options.offsets, shift=shift, halves=held_out)
+                                                       offsets=options.offsets, shift=shift, halves=held_out,
+                                                       albedo=options.demodulation == "albedo")
                 drawn = list(drawn) if held_out else [drawn]
             part_spps = (budget.spp // 2, budget.spp - budget.spp // 2) if held_out else None
             alpha, scores = options.alpha, None
@@ -500,7 +501,8 @@ class _GradientDomain(Method):
         with timer("sampling"):
             pilots = {shift: list(scene.sample_gradients(context.layout, context.grid_shape, pilot,
                                                          shift_seed(budget.seed, index), offsets=options.offsets,
-                                                         shift=shift, halves=True))
+                                                         shift=shift, halves=True,
+                                                         albedo=options.demodulation == "albedo"))
                       for index, shift in enumerate(SHIFT_MAPS)}
         with timer("integration"):
             halves = {shift: [_estimates(part, spp, separate, None)
@@ -514,7 +516,8 @@ class _GradientDomain(Method):
             with timer("sampling"):
                 drawn.append(scene.sample_gradients(context.layout, context.grid_shape, rest,
                                                     shift_seed(budget.seed, len(SHIFT_MAPS)),
-                                                    offsets=options.offsets, shift=shift))
+                                                    offsets=options.offsets, shift=shift,
+                                                    albedo=options.demodulation == "albedo"))
         return drawn, shift, alpha, scores, pilot
 
     def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves):  # pragma: no cover - interface

@@ -46,7 +46,8 @@ class GradientSamples(NamedTuple):
     albedo : ndarray, same shape
         The same sums of the diffuse reflectance at each path's first hit
         (0 for a miss or a surface without a diffuse lobe): the texture that
-        :mod:`sparselt.methods.gradient_domain` demodulates.
+        :mod:`sparselt.methods.gradient_domain` demodulates. All 0 where
+        :func:`sample_gradients` was told not to reduce it (``albedo=False``).
     nonfinite : int
         Paths (base or offset, inside the film) whose value was NaN or
         infinite, counted as 0.
@@ -79,7 +80,7 @@ def gradient_paths(width, height, offsets):
     return width * height + sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS[offsets])
 
 
-def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="replay", halves=False):
+def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="replay", halves=False, albedo=True):
     """Gradient-domain path samples: every base sample replayed at the neighbouring pixels, in one kernel.
 
     Base sample ``i`` of pixel ``p`` is
@@ -114,6 +115,10 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
         rest separately (two independent halves of the same samples, for the
         held-out choice of :mod:`sparselt.methods.gradient_domain`): the
         reconnection shift reduces both in its one launch. Needs ``spp >= 2``.
+    albedo : bool
+        Reduce the first hits' diffuse albedo (what demodulation needs). With
+        False and the replay shift, ``albedo`` is left 0 and its three
+        reductions are skipped (the reconnection shift reduces it always).
 
     Returns
     -------
@@ -177,8 +182,10 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
             recorded = {}
             value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded), inside)
             # A layout that counts no emission seen directly leaves its sums 0 without reducing zeros.
-            albedo = dr.select(finite, recorded["diffuse_albedo"], 0.0)
-            channels = [value.x, value.y, value.z, albedo.x, albedo.y, albedo.z]
+            channels = [value.x, value.y, value.z]
+            if albedo:
+                first_albedo = dr.select(finite, recorded["diffuse_albedo"], 0.0)
+                channels += [first_albedo.x, first_albedo.y, first_albedo.z]
             if layout.count_camera_emission:
                 emission = dr.select(finite, recorded["camera_emission"], 0.0)
                 channels += [emission.x, emission.y, emission.z]
@@ -187,9 +194,10 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
             reduced = [dr.block_sum(channel, count) for channel in channels]
             dr.eval(reduced)
             sums += stacked(reduced[:3])
-            albedo_sums += stacked(reduced[3:6])
+            if albedo:
+                albedo_sums += stacked(reduced[3:6])
             if layout.count_camera_emission:
-                emission_sums += stacked(reduced[6:])
+                emission_sums += stacked(reduced[-3:])
         shape = (height, width, paths_per_base, 3)
         return GradientSamples(sums.reshape(shape), emission_sums.reshape(shape), albedo_sums.reshape(shape),
                                nonfinite)

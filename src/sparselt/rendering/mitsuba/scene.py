@@ -130,9 +130,11 @@ class MitsubaScene:
         """:func:`sparselt.rendering.mitsuba.pixel_statistics.sample_pixel_statistics` on this scene."""
         return sample_pixel_statistics(self, layout, grid_shape, seed, names, spp=spp, lanes=lanes)
 
-    def sample_gradients(self, layout, grid_shape, spp, seed, *, offsets=4, shift="replay", halves=False):
+    def sample_gradients(self, layout, grid_shape, spp, seed, *, offsets=4, shift="replay", halves=False,
+                         albedo=True):
         """:func:`sparselt.rendering.mitsuba.gradients.sample_gradients` on this scene."""
-        return sample_gradients(self, layout, grid_shape, spp, seed, offsets=offsets, shift=shift, halves=halves)
+        return sample_gradients(self, layout, grid_shape, spp, seed, offsets=offsets, shift=shift, halves=halves,
+                                albedo=albedo)
 
     def render_estimator(self, layout, spp, seed):
         """:func:`sparselt.rendering.mitsuba.guided.render_estimator` on this scene."""
