@@ -70,6 +70,17 @@ def _timed(function):
     return time.perf_counter() - start, result
 
 
+def _medians(steps, repeats):
+    """The median seconds of each of ``steps`` (name -> callable), each warmed up once, the repeats interleaved."""
+    seconds = {name: [] for name in steps}
+    for step in steps.values():
+        step()  # warm-up
+    for _ in range(repeats):
+        for name, step in steps.items():
+            seconds[name].append(_timed(step)[0])
+    return [statistics.median(seconds[name]) for name in steps]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=5)
@@ -104,26 +115,14 @@ def main():
         steps = {"check": lambda: held_out_l1_check(halves, 0.2),
                  "l1": lambda: screened_poisson_l1(*problem, **BUDGET),
                  "l2": lambda: screened_poisson(*problem, alpha=0.2)}
-        seconds = {name: [] for name in steps}
-        for step in steps.values():
-            step()  # warm-up
-        for _ in range(arguments.repeats):
-            for name, step in steps.items():
-                seconds[name].append(_timed(step)[0])
-        check, l1, l2 = (statistics.median(seconds[name]) for name in steps)
+        check, l1, l2 = _medians(steps, arguments.repeats)
         print(f"    held-out L1 check: {check:.4f} s; L2 solve {l2:.4f} s; where the check keeps L1 it costs "
               f"{(check + l1) / l1:.2f}x the L1 solve alone, where it keeps L2 {(check + l2) / l1:.2f}x")
         steps = {precision: (lambda precision=precision: screened_poisson_family(*halves[0], HELD_OUT_ALPHAS,
                                                                                  precision=precision))
                  for precision in ("double", "single")}
         steps["choice"] = lambda: held_out_alpha(halves)
-        seconds = {name: [] for name in steps}
-        for step in steps.values():
-            step()  # warm-up
-        for _ in range(arguments.repeats):
-            for name, step in steps.items():
-                seconds[name].append(_timed(step)[0])
-        double, single, choice = (statistics.median(seconds[name]) for name in steps)
+        double, single, choice = _medians(steps, arguments.repeats)
         print(f"    held-out alpha: family of {len(HELD_OUT_ALPHAS)} L2 images float64 {double:.4f} s, float32 "
               f"{single:.4f} s ({double / single:.2f}x); the whole choice on two halves {choice:.4f} s")
 
