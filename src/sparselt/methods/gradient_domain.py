@@ -442,12 +442,9 @@ class _GradientDomain(Method):
             shift, pilot = ("replay" if options.shift == "auto" else options.shift), 0
             held_out = options.alpha_choice == "held-out" and budget.spp >= 2
             # Held out: two independent halves of the samples (base samples below spp // 2 and the rest, reduced
-            # apart in the same launch), so that each half's primal image can judge the other's reconstruction;
-            # the estimates of all the samples are those of their summed sums.
+            # apart in the same launch), so that each half's primal image can judge the other's reconstruction.
             with timer("sampling"):
-                drawn = context.scene.sample_gradients(context.layout, context.grid_shape, budget.spp, budget.seed,
-                                                       offsets=options.offsets, shift=shift, halves=held_out,
-                                                       albedo=options.demodulation == "albedo")
+                drawn = self._sample(context, budget.spp, budget.seed, shift, halves=held_out)
                 drawn = list(drawn) if held_out else [drawn]
             part_spps = (budget.spp // 2, budget.spp - budget.spp // 2) if held_out else None
             alpha, scores = options.alpha, None
@@ -495,14 +492,11 @@ class _GradientDomain(Method):
         """``shift='auto'``: a pilot of :func:`pilot_spp` base samples per pixel with each shift, in independent
         halves, judged by :func:`~sparselt.recovery.poisson.held_out_choice` (with alpha); the rest of the base
         samples with the winner, its pilot's samples kept. Returns ``(drawn, shift, alpha, scores, pilot_spp)``."""
-        options, scene = self.options, context.scene
+        options = self.options
         pilot = pilot_spp(budget.spp)
         alphas = HELD_OUT_ALPHAS if options.alpha_choice == "held-out" else (options.alpha,)
         with timer("sampling"):
-            pilots = {shift: list(scene.sample_gradients(context.layout, context.grid_shape, pilot,
-                                                         shift_seed(budget.seed, index), offsets=options.offsets,
-                                                         shift=shift, halves=True,
-                                                         albedo=options.demodulation == "albedo"))
+            pilots = {shift: list(self._sample(context, pilot, shift_seed(budget.seed, index), shift, halves=True))
                       for index, shift in enumerate(SHIFT_MAPS)}
         with timer("integration"):
             halves = {shift: [_estimates(part, spp, separate, None)
@@ -514,11 +508,14 @@ class _GradientDomain(Method):
         rest = budget.spp - pilot
         if rest:
             with timer("sampling"):
-                drawn.append(scene.sample_gradients(context.layout, context.grid_shape, rest,
-                                                    shift_seed(budget.seed, len(SHIFT_MAPS)),
-                                                    offsets=options.offsets, shift=shift,
-                                                    albedo=options.demodulation == "albedo"))
+                drawn.append(self._sample(context, rest, shift_seed(budget.seed, len(SHIFT_MAPS)), shift))
         return drawn, shift, alpha, scores, pilot
+
+    def _sample(self, context, spp, seed, shift, *, halves=False):
+        """The scene's gradient samples with the method's offsets, the first-hit albedo reduced only to demodulate."""
+        return context.scene.sample_gradients(context.layout, context.grid_shape, spp, seed,
+                                              offsets=self.options.offsets, shift=shift, halves=halves,
+                                              albedo=self.options.demodulation == "albedo")
 
     def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves):  # pragma: no cover - interface
         """The image from the estimates of all the samples at ``alpha`` (finite); ``halves`` the estimates of the

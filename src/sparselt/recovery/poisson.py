@@ -165,19 +165,23 @@ def screened_poisson_family(primal, gradient_x, gradient_y, alphas, *, precision
     return images
 
 
-def _single_precision_family(primal, adjoint, eigenvalues, alphas):
-    """:func:`screened_poisson_family`'s images in float32 by ducc0's DCTs (as :func:`_single_precision_solver`)."""
+def _float32_dct(array, kind, out=None):
+    """ducc0's DCT-II (``kind`` 2) or DCT-III (3) over the image axes, on every core: the float32 solves' transform
+    (each the other's inverse up to the eigenvalues' division)."""
     import ducc0
 
     from ..fourier.fft import default_threads
 
-    threads = default_threads()
+    return ducc0.fft.dct(array, type=kind, axes=(0, 1), inorm=1, out=out, nthreads=default_threads())
+
+
+def _single_precision_family(primal, adjoint, eigenvalues, alphas):
+    """:func:`screened_poisson_family`'s images in float32 by ducc0's DCTs (as :func:`_single_precision_solver`)."""
     shape = primal.shape
     channels = int(np.prod(shape[2:], dtype=np.int64))
 
     def forward(array):
-        flat = np.ascontiguousarray(array, dtype=np.float32).reshape(shape[:2] + (channels,))
-        return ducc0.fft.dct(flat, type=2, axes=(0, 1), inorm=1, nthreads=threads)
+        return _float32_dct(np.ascontiguousarray(array, dtype=np.float32).reshape(shape[:2] + (channels,)), 2)
 
     primal_spectrum, gradient_spectrum = forward(primal), forward(adjoint)
     flat_eigenvalues = eigenvalues.reshape(shape[:2] + (-1,)).astype(np.float32)
@@ -190,8 +194,7 @@ def _single_precision_family(primal, adjoint, eigenvalues, alphas):
         spectrum = np.multiply(primal_spectrum, weight)
         spectrum += gradient_spectrum
         spectrum /= weight + flat_eigenvalues
-        images.append(ducc0.fft.dct(spectrum, type=3, axes=(0, 1), inorm=1, out=spectrum,
-                                    nthreads=threads).reshape(shape))
+        images.append(_float32_dct(spectrum, 3, out=spectrum).reshape(shape))
     return images
 
 
@@ -446,18 +449,13 @@ def _single_precision_solver(height, width, channels, diagonal_shift, eigenvalue
     Returns ``solve(right_hand_side, out)``: both ``(height, width, channels)``
     float32; ``out`` receives the solution (``right_hand_side`` is left as it was).
     """
-    import ducc0
-
-    from ..fourier.fft import default_threads
-
     denominator = (diagonal_shift + eigenvalues).astype(np.float32)
     spectrum = np.empty((height, width, channels), dtype=np.float32)
-    threads = default_threads()
 
     def solve(right_hand_side, out):
-        ducc0.fft.dct(right_hand_side, type=2, axes=(0, 1), inorm=1, out=spectrum, nthreads=threads)
+        _float32_dct(right_hand_side, 2, out=spectrum)
         np.divide(spectrum, denominator, out=spectrum)
-        return ducc0.fft.dct(spectrum, type=3, axes=(0, 1), inorm=1, out=out, nthreads=threads)
+        return _float32_dct(spectrum, 3, out=out)
 
     return solve
 
