@@ -10,10 +10,10 @@ $(STAMP): pyproject.toml scripts/bootstrap.sh
 	scripts/bootstrap.sh
 	touch $(STAMP)
 
-# Two pytest workers, each test file on one of them (its module fixtures built once): 8 min instead of 17 on 2 cores
-# (many tests wait on a browser, a Dask cluster or a subprocess). `pytest -p no:xdist` runs them in one process.
+# One process: with two pytest workers (`-n 2 --dist loadfile`, 9-10 min instead of 17) a timing-dependent
+# verdict in test_reproduce.py failed once in three runs, so CI runs them serially until that is understood.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q
 
 # Main job, the whole story at a small size: a dof signal of the depth-of-field scene, its
 # pictures and sparsity analysis, then the equal-time comparison of path tracing with the
