@@ -481,30 +481,21 @@ class AafIndirect(_AxisAligned):
                    "diffuse secondary ray per pixel, albedo-demodulated, glossy-lobe samples unfiltered; "
                    "a quarter of the budget as pilot, the rest allocated per pixel")
 
-    def _pixel_depth(self, statistics):
-        hits = statistics.total("hits")
-        return np.where(hits > 0, statistics.total("depth") / np.maximum(hits, 1), np.inf)  # pilot sums both
-
-    def _safe(self, statistics):
-        # Demodulation needs a diffuse reflectance in every channel: other pixels (metals, the environment)
-        # are neither filtered nor taken as neighbours (their guide is out of reach).
-        return np.all(statistics.mean("albedo") > 1e-3, axis=-1)
-
     def widths(self, context, options, statistics):
-        sigma, sigma_world = indirect_filter_width(statistics.total("shortest"), self._pixel_depth(statistics),
+        sigma, sigma_world = indirect_filter_width(statistics.total("shortest"), _pixel_depth(statistics),
                                                    context.scene.lens_geometry()["pixels_per_tangent"],
                                                    bandlimit=options.bandlimit)
-        safe = self._safe(statistics)
+        safe = _demodulable(statistics)
         return options.width_scale * np.where(safe, sigma, 0.0), options.width_scale * sigma_world
 
     def finish(self, context, options, statistics):
         sigma, sigma_world = self.widths(context, options, statistics)
-        safe = self._safe(statistics)[..., None]
+        safe = _demodulable(statistics)[..., None]
         means = statistics.mean("rgb")
         diffuse_part = statistics.mean("diffuse_rgb")
         albedo = statistics.mean("albedo")
         irradiance = np.where(safe, diffuse_part / np.where(safe, albedo, 1.0), 0.0)
-        pixel_depth = self._pixel_depth(statistics)
+        pixel_depth = _pixel_depth(statistics)
         depth_guide = np.where(np.isfinite(pixel_depth) & safe[..., 0], pixel_depth, 1e30)
         filtered = axis_aligned_filter(irradiance, sigma, guide=depth_guide, tolerance=np.maximum(sigma_world, 1e-6),
                                        fixed_guide=statistics.mean("normal"), fixed_tolerance=options.normal_tolerance,
