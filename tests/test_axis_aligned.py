@@ -633,6 +633,7 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
                   "hits": np.isfinite(depth).astype(np.float64), "nearest": depth, "farthest": depth,
                   "shortest": np.where(diffuse, auxiliary["secondary_distance"], np.inf)}
     uniform, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp)
+    halves, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp, halves=True)
     # Explicit lanes: pixels 4..9 with 1..6 samples each, sample indices from 0, as in the uniform pass.
     chosen = np.arange(4, 10)
     counts = chosen - 3
@@ -644,6 +645,9 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
         array = np.asarray(per_sample[name], dtype=np.float64).reshape((pixels, spp) + np.shape(per_sample[name])[1:])
         expected = {"sum": array.sum(axis=1), "min": array.min(axis=1), "max": array.max(axis=1)}[reduction]
         np.testing.assert_allclose(uniform[name], expected, rtol=1e-5, atol=1e-6, err_msg=name)
+        for half, part in zip(halves, (array[:, :spp // 2], array[:, spp // 2:])):  # each pixel's first, second 3
+            want = {"sum": part.sum(axis=1), "min": part.min(axis=1), "max": part.max(axis=1)}[reduction]
+            np.testing.assert_allclose(half[name], want, rtol=1e-5, atol=1e-6, err_msg=name)
         for pixel, count in zip(chosen, counts):
             part = array[pixel, :count]
             want = {"sum": part.sum(axis=0), "min": part.min(axis=0), "max": part.max(axis=0)}[reduction]
@@ -687,6 +691,65 @@ def test_explicit_lanes_must_be_sorted_by_pixel():
     layout = path_layout("indirect", 3, thin_lens=False)
     with pytest.raises(ValueError, match="sorted by pixel"):
         scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([2, 1]), np.array([0, 0])))
+    with pytest.raises(ValueError, match="halves needs a uniform pass of an even spp, not spp=3"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), spp=3, halves=True)
+    with pytest.raises(ValueError, match="with explicit lanes"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([1]), np.array([0])),
+                                      halves=True)
+
+
+def _half(context, noisy_columns, spp=2):
+    """Pilot-half statistics by hand on ``context``'s film: every pixel in focus (no width, ``r_p = 1``), mean 1,
+    and a per-sample variance of 100 in ``noisy_columns``, 0.01 elsewhere."""
+    from sparselt.methods.axis_aligned import PixelStatistics
+
+    width, height = context.resolution
+    focus = context.scene.lens_geometry()["focus_distance"]
+    variance = np.full((height, width), 0.01)
+    variance[:, noisy_columns] = 100.0
+    mean = np.ones((height * width, 3))
+    statistics = PixelStatistics((height, width))
+    statistics.add({"rgb": spp * mean, "rgb_squared": spp * (mean ** 2 + variance.reshape(-1, 1)),
+                    "nearest": np.full(height * width, focus), "farthest": np.full(height * width, focus)}, spp)
+    return statistics
+
+
+def test_the_held_out_gain_keeps_an_allocation_both_halves_agree_on_and_drops_one_they_do_not(
+        soft_shadow_dof_context):
+    """Both halves see the same few noisy columns: the allocation from either lowers the other's predicted relMSE
+    (gain above 1, as by hand: sum(w) / spp over sum(w / n)); each half sees other columns (one half's noise): the
+    allocation from one starves the other's noisy pixels (gain below 1)."""
+    context = soft_shadow_dof_context
+    method = get_method("aaf-dof")
+    left, right = slice(0, 4), slice(20, 24)
+    same = method.held_out_gain(context, method.options, [_half(context, left), _half(context, left)], 16, 4, 124)
+    apart = method.held_out_gain(context, method.options, [_half(context, left), _half(context, right)], 16, 4, 124)
+    assert same > 1.5 and apart < 0.7, (same, apart)
+    from sparselt.methods.axis_aligned import allocate_samples
+
+    relative = _half(context, left).relative_variance()
+    counts = allocate_samples(relative, np.ones_like(relative), 12 * relative.size, 124) + 4
+    assert same == pytest.approx(relative.sum() / 16 / np.sum(relative / counts), rel=1e-12)
+
+
+@pytest.mark.parametrize("row, plan", [
+    ("aaf-dof", "one launch (budget below single_launch_below)"),
+    ("aaf-dof:single_launch_below=0:allocation_gain=1000", "uniform (held-out gain below allocation_gain)"),
+    ("aaf-dof:single_launch_below=0:allocation_gain=0:pilot_fraction=0.2", "allocated")])
+def test_each_sampling_plan_spends_the_budget_as_it_says(soft_shadow_dof_context, row, plan):
+    """One launch: every pixel spp samples. The rest uniform (the held-out gain below the bar): every pixel spp
+    samples too, after a pilot of even spp. Allocated without the check (the papers' rule, pilot_fraction 0.2 of 16
+    spp: 3, not rounded to even): pixels differ. No path is drawn beyond the budget."""
+    result = _run(row, soft_shadow_dof_context, 16, 3)
+    width, height = soft_shadow_dof_context.resolution
+    assert result.details["allocation"] == plan
+    assert result.path_samples <= 16 * width * height
+    uniform = result.details["smallest_pixel_spp"] == result.details["largest_pixel_spp"] == 16
+    assert uniform == (plan != "allocated")
+    assert result.details["pilot_spp"] == {"allocated": 3, "uniform (held-out gain below allocation_gain)": 4}.get(
+        plan, 16)
+    if plan.startswith("uniform"):
+        assert 0 < result.details["allocation_held_out_gain"] < 1000
 
 
 # --------------------------------------------------------------------------- factored soft-shadow filtering (issue 37)

@@ -73,7 +73,7 @@ def _not_warmed(entry):
     return not entry.get("cache_hit", True) or entry.get("cache_disk", False)
 
 
-def _aaf_indirect_runs(history, *, max_depth=3, before_warm_up=lambda: None):
+def _aaf_indirect_runs(history, *, max_depth=3, before_warm_up=lambda: None, row="aaf-indirect:single_launch_below=0"):
     """``aaf-indirect`` on cornell-box at 24x24, warmed by the harness, then three timed seeds: the kernels of
     each run that were not warmed, as ``{seed: [(hash, head of code), ...]}``."""
     from sparselt.rendering.mitsuba import MitsubaScene
@@ -82,7 +82,7 @@ def _aaf_indirect_runs(history, *, max_depth=3, before_warm_up=lambda: None):
     layout = path_layout("indirect", max_depth)
     context = ComparisonContext(scene=scene, layout=layout, kind="indirect", grid_shape=(24, 24, 16, 16),
                                 resolution=(24, 24), max_depth=max_depth)
-    method = get_method("aaf-indirect")
+    method = get_method(row)
     before_warm_up()
     warm_up(method, context)
     history()
@@ -93,9 +93,13 @@ def _aaf_indirect_runs(history, *, max_depth=3, before_warm_up=lambda: None):
     return misses
 
 
-def test_aaf_indirect_compiles_nothing_after_its_warm_up(history):
-    """The allocated pass (explicit lanes, slots) over three seeds: every kernel launched was launched before."""
-    misses = _aaf_indirect_runs(history)
+@pytest.mark.parametrize("row", ["aaf-indirect:single_launch_below=0", "aaf-indirect:single_launch_below=0:"
+                                 "allocation_gain=1000", "aaf-indirect"])
+def test_aaf_indirect_compiles_nothing_after_its_warm_up(history, row):
+    """Over three seeds, whichever way the run goes (the pilot in halves then the allocated pass, explicit lanes
+    and slots; the same with the rest uniform; one launch, the default on this small image), every kernel
+    launched was launched before."""
+    misses = _aaf_indirect_runs(history, row=row)
     assert not any(misses.values()), f"kernels not warmed, by seed: {misses}"
 
 

@@ -28,8 +28,11 @@ from .runtime import modules
 ONE_MINUS_EPSILON = float(np.float32(1.0) - np.float32(2.0**-24))
 
 
-def item_lanes(count, spp, seed, *, first=0, stream=0, items=None, order=None):
+def item_lanes(count, spp, seed, *, first=0, stream=0, items=None, order=None, first_sample=None):
     """One lane per sample: ``spp`` samples of each of ``count`` items (cells or pixels) from ``first``.
+
+    With ``first_sample`` the items' sample indices run from it instead of 0
+    (an opaque value: one kernel for every offset, 0 included).
 
     With ``items`` (a ``mi.UInt32`` of ``count`` item numbers) the items are
     those instead of the run ``first, first + 1, ...``. With ``order`` (a
@@ -51,6 +54,8 @@ def item_lanes(count, spp, seed, *, first=0, stream=0, items=None, order=None):
     else:
         item = dr.gather(mi.UInt32, items, index // samples_per_item)
     sample_index = index % samples_per_item
+    if first_sample is not None:
+        sample_index = sample_index + dr.opaque(mi.UInt32, int(first_sample))
     return item, seeded_generator(item, sample_index, seed, stream), lane_count
 
 

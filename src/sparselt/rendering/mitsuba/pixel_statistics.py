@@ -87,7 +87,8 @@ def shadow_slope(recorded):
     return dr.select(blocked, distance / dr.select(blocked, occluder, 1.0) - 1.0, 0.0), blocked
 
 
-def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None, lanes=None):
+def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None, lanes=None, halves=False,
+                            first_sample=0):
     """Per-pixel reductions of per-sample quantities (:data:`PIXEL_STATISTICS`), reduced where they are drawn.
 
     The samples are exactly those of
@@ -115,26 +116,39 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
         Samples per pixel of every film pixel (one of ``spp``, ``lanes``).
     lanes : tuple of two int arrays, optional
         ``(pixels, sample_indices)``, sorted by pixel.
+    first_sample : int, optional
+        A uniform pass's sample indices start here (default 0): ``spp``
+        samples more of every pixel after the ``first_sample`` drawn
+        before, the samples explicit lanes with those indices would draw.
+    halves : bool, optional
+        A uniform pass only (even ``spp``): reduce each pixel's first and
+        second ``spp / 2`` samples apart, in the same launch (the block
+        reduction's block is half as long), for a held-out check of what
+        the first half predicts (``aaf-*``'s allocation).
 
     Returns
     -------
-    statistics : dict
+    statistics : dict, or a tuple of two dicts with ``halves``
         name -> float64 array ``(pixels,)`` or ``(pixels, 3)`` over every
-        film pixel (pixels without samples hold the reduction's identity).
+        film pixel (pixels without samples hold the reduction's identity);
+        with ``halves``, one such dict per half.
     nonfinite : int
         Samples that were NaN or infinite (counted as 0).
 
     Raises
     ------
     ValueError
-        An unknown name, neither or both of ``spp`` and ``lanes``, or lanes
-        not sorted by pixel.
+        An unknown name, neither or both of ``spp`` and ``lanes``, lanes
+        not sorted by pixel, or ``halves`` with lanes or an odd ``spp``.
     """
     unknown = sorted(set(names) - set(PIXEL_STATISTICS))
     if unknown:
         raise ValueError(f"unknown pixel statistics {unknown}; choose from {', '.join(PIXEL_STATISTICS)}")
     if (spp is None) == (lanes is None):
         raise ValueError("give exactly one of spp and lanes")
+    if halves and (lanes is not None or int(spp) % 2):
+        raise ValueError(f"halves needs a uniform pass of an even spp, not spp={spp} "
+                         f"{'with explicit lanes' if lanes is not None else ''}".rstrip())
     pixels = scene.width * scene.height
     if lanes is not None:
         slots = explicit_slots(lanes[0], EXPLICIT_BLOCK)
@@ -142,7 +156,7 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     def work(folded_seed):
         mi, dr = modules()
         _, samples, _ = pixel_lanes(layout, grid_shape, spp, folded_seed, 0, pixels, (scene.width, scene.height),
-                                    lanes, cell=False)
+                                    lanes, cell=False, first_sample=None if lanes is not None else first_sample)
         recorded = {}
         value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded))
         quantities = {name: statistic_quantity(name, value, recorded, finite) for name in names}
@@ -150,7 +164,7 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
                 for name, quantity in quantities.items()}
         operations = {"sum": dr.ReduceOp.Add, "min": dr.ReduceOp.Min, "max": dr.ReduceOp.Max}
         if lanes is None:
-            block = int(spp)
+            block = int(spp) // 2 if halves else int(spp)
         else:  # each lane into its slot: a pixel's lanes fill whole blocks, the rest of a block is the identity
             block = slots.block
             slot = to_device(mi.UInt32, slots.slot, np.uint32)
@@ -172,6 +186,8 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
         results = {name: stacked(channels) for name, channels in reduced.items()}
         if lanes is not None:
             results = {name: slots.merge(value, PIXEL_STATISTICS[name], pixels) for name, value in results.items()}
+        if halves:  # blocks alternate between a pixel's first and second half
+            results = tuple({name: value[part::2] for name, value in results.items()} for part in (0, 1))
         return results, int(nonfinite[0])
 
     drawn = pixels * int(spp) if lanes is None else int(np.size(lanes[0]))

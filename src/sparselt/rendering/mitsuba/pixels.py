@@ -100,16 +100,18 @@ def sample_pixels(scene, layout, grid_shape, spp, seed, first_pixel=0, pixel_cou
     return launch(work, seed, path_samples=drawn)
 
 
-def pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count, film_size, explicit=None, *, cell=True):
+def pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count, film_size, explicit=None, *, cell=True,
+                first_sample=None):
     """The PSS vectors of pixel samples (see :func:`sample_pixels`): ``(pixel, samples, cell)`` per lane.
 
     ``explicit``, ``(pixels, sample_indices)``, draws exactly those samples
     instead of ``spp`` per pixel of the run; ``seed`` is the 32-bit seed;
-    ``cell=False``: no grid cell (None).
+    ``cell=False``: no grid cell (None); ``first_sample``: the run's sample
+    indices start there (:func:`~sparselt.rendering.mitsuba.lanes.item_lanes`).
     """
     mi, dr = modules()
     if explicit is None:
-        pixel, generator, _ = item_lanes(pixel_count, spp, seed, first=first_pixel)
+        pixel, generator, _ = item_lanes(pixel_count, spp, seed, first=first_pixel, first_sample=first_sample)
     else:
         pixel, generator = explicit_lanes(explicit[0], explicit[1], seed)
     width = dr.opaque(mi.UInt32, film_size[0])
