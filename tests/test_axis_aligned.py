@@ -609,8 +609,9 @@ def test_a_guide_tolerance_must_be_positive():
 
 @pytest.mark.parametrize("kind", ["dof", "indirect"])
 def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind):
-    """sample_pixel_statistics (reduced in the sampling kernel, uniform or explicit lanes) equals the
-    per-pixel sums, minima and maxima of sample_pixels' per-sample outputs: the same samples, nothing else."""
+    """sample_pixel_statistics (reduced in the sampling kernel, uniform, in halves, from a later sample index or
+    explicit lanes) equals the per-pixel sums, minima and maxima of sample_pixels' per-sample outputs: the same
+    samples, nothing else."""
     from sparselt.rendering.mitsuba import PIXEL_STATISTICS
 
     spec = get_scene("cornell-box").with_lens(0.1, 1.0) if kind == "dof" else get_scene("cornell-box")
@@ -634,6 +635,7 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
                   "shortest": np.where(diffuse, auxiliary["secondary_distance"], np.inf)}
     uniform, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp)
     halves, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp, halves=True)
+    later, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp // 2, first_sample=spp // 2)
     # Explicit lanes: pixels 4..9 with 1..6 samples each, sample indices from 0, as in the uniform pass.
     chosen = np.arange(4, 10)
     counts = chosen - 3
@@ -645,7 +647,8 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
         array = np.asarray(per_sample[name], dtype=np.float64).reshape((pixels, spp) + np.shape(per_sample[name])[1:])
         expected = {"sum": array.sum(axis=1), "min": array.min(axis=1), "max": array.max(axis=1)}[reduction]
         np.testing.assert_allclose(uniform[name], expected, rtol=1e-5, atol=1e-6, err_msg=name)
-        for half, part in zip(halves, (array[:, :spp // 2], array[:, spp // 2:])):  # each pixel's first, second 3
+        # Each pixel's first and second 3 samples; the second 3 again as a uniform pass from sample index 3.
+        for half, part in zip(halves + (later,), (array[:, :spp // 2], array[:, spp // 2:], array[:, spp // 2:])):
             want = {"sum": part.sum(axis=1), "min": part.min(axis=1), "max": part.max(axis=1)}[reduction]
             np.testing.assert_allclose(half[name], want, rtol=1e-5, atol=1e-6, err_msg=name)
         for pixel, count in zip(chosen, counts):
