@@ -80,10 +80,11 @@ predicted error at least ``allocation_gain`` times
 (:meth:`_AxisAligned.held_out_gain`); otherwise the rest is uniform. A budget
 below ``single_launch_below`` samples is drawn in one uniform launch: a
 launch's fixed cost (tracing, code generation: 10-14 ms on 2 cores) is
-then a large share of the time. The bound is crude: it lies between the two
-small budgets measured (user-dof at 160x96 and 16 spp, 245,760 samples, where
-one launch won; dof-sculptures at 128x128 and 16 spp, 262,144, where the
-pilot and the allocation won, 1.79x against 1.52x over PT). Deciding from the
+then a large share of the time. The bound is crude: below it the allocation
+is given up where it would have won (dof-sculptures at 128x128 and 16 spp:
+1.52x over PT in one launch, 1.79x with the pilot and the allocation); at
+2^18 instead, user-dof at 160x96 and 64 spp lost (0.965x, the two launches of
+a declined allocation) where one launch wins (1.08x). Deciding from the
 launch's measured cost would make the image depend on the machine's timing.
 
 Both are biased (a filter), consistent only as the widths shrink; the bias is
@@ -139,11 +140,12 @@ class AxisAlignedOptions(MethodOptions):
                                          "other half's predicted relMSE at least this many times (both ways, "
                                          "geometric mean); otherwise the rest is uniform. 0: always allocate (the "
                                          "papers' rule)")
-    single_launch_below: int = option(1 << 18, minimum=0,
-                                      help="a budget of fewer samples (pixels x spp; default 2^18, a 128x128 image "
+    single_launch_below: int = option(1 << 20, minimum=0,
+                                      help="a budget of fewer samples (pixels x spp; default 2^20, a 256x256 image "
                                            "at 16 spp) is drawn uniformly in one launch, no pilot: a second "
                                            "launch's fixed cost (tracing and code generation, 10-14 ms) is then over "
-                                           "a fifth of the budget; 0: never")
+                                           "about 5% of the budget at the standard suite's median cost per sample; "
+                                           "0: never")
 
 
 @dataclass(frozen=True)
