@@ -71,10 +71,11 @@ The final widths come from all of a pixel's samples.
 extra cost"). Measured over the suite's scenes, the allocation helped where a
 few pixels hold most of the error (dof-sculptures' in-focus gold, sunlit-room's
 fireflies: 1.3x and 2.8x less relMSE x time than the same filter on uniform
-samples) and hurt elsewhere (outdoor-texture 2.4x, courtyard 1.6x, user-dof
-1.2x worse): pixels whose few pilot samples missed the diffuse lobe got no
-width and drew most of the samples, and allocated samples fall on long,
-costly paths. So the pilot is drawn in two halves in its one launch, and the
+samples) and hurt elsewhere (courtyard 1.6x, glossy-interior 1.2x, user-dof
+1.2x worse; outdoor-texture too, with the albedo of every sample): a pixel
+whose few pilot samples all took the glossy lobe gets no width and draws many
+samples, and allocated samples fall on long, costly paths
+(``docs/experiments/README.md``, issue 37's eighth session). So the pilot is drawn in two halves in its one launch, and the
 allocation is kept only where the one from each half lowers the other half's
 predicted error at least ``allocation_gain`` times
 (:meth:`_AxisAligned.held_out_gain`); otherwise the rest is uniform. A budget
@@ -375,9 +376,8 @@ class _AxisAligned(Method):
                 allocate = warming == "allocated" or (warming is None and (gain is None or
                                                                            gain >= options.allocation_gain))
                 if allocate:
-                    sigma, _ = self.widths(context, options, statistics)
-                    extra = allocate_samples(statistics.relative_variance(),
-                                             filter_variance_factor(sigma, options.maximum_radius), extra_total, cap)
+                    extra = allocate_samples(*self._variance_and_factor(context, options, statistics), extra_total,
+                                             cap)
                 details.update(allocation="allocated" if allocate else "uniform (held-out gain below allocation_gain)",
                                allocation_held_out_gain=gain if gain is not None else "")
             if allocate:
@@ -423,6 +423,12 @@ class _AxisAligned(Method):
             return (pilot_spp, "held-out") if pilot_spp < spp else (spp, "one launch (pilot_fraction covers the budget)")
         return pilot_spp, "allocated"
 
+    def _variance_and_factor(self, context, options, statistics):
+        """``(v_p, r_p)``: each pixel's relative variance per sample and the variance factor of its filter width,
+        what :func:`allocate_samples` weighs."""
+        sigma, _ = self.widths(context, options, statistics)
+        return statistics.relative_variance(), filter_variance_factor(sigma, options.maximum_radius)
+
     def held_out_gain(self, context, options, halves, spp, pilot_spp, cap):
         """How many times the allocation from one pilot half lowers the other half's predicted relMSE.
 
@@ -437,10 +443,7 @@ class _AxisAligned(Method):
         variance.
         """
         extra_total = (spp - pilot_spp) * int(halves[0].counts.size)
-        analysed = []  # each half's (v_p, r_p)
-        for statistics in halves:
-            sigma, _ = self.widths(context, options, statistics)
-            analysed.append((statistics.relative_variance(), filter_variance_factor(sigma, options.maximum_radius)))
+        analysed = [self._variance_and_factor(context, options, statistics) for statistics in halves]
         scores = []
         for (variance, factor), (held_variance, held_factor) in (analysed, analysed[::-1]):
             allocated = allocate_samples(variance, factor, extra_total, cap) + pilot_spp
