@@ -11,7 +11,8 @@ variant alike), in the same run:
 - the method at the same spp, its total and its phases;
 - its **overhead**: the method's time beyond what PT takes for the same path
   samples, ``(method - pt(paths)) / pt(paths)``. For the axis-aligned filters
-  the path samples are PT's at the same spp (the pilot is part of the budget),
+  the path samples are at most PT's at the same spp (the pilot is part of the
+  budget; a cost-aware allocation draws fewer samples where paths are long),
   so this is their time beyond PT's at the same spp. A gradient-domain base
   sample is a base path and its offsets (about 5 paths), so its overhead is
   against PT at the same number of paths: the offset paths are its samples,

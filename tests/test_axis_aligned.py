@@ -621,18 +621,23 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
     names = tuple(PIXEL_STATISTICS)
     values, _, _, auxiliary = scene.sample_pixels(layout, grid, spp, 5, auxiliary=(
         "primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance", "secondary_diffuse", "direct_light",
-        "light_distance", "occluder_distance", "light_size"))
+        "light_distance", "occluder_distance", "light_size", "path_vertices"))
     depth, diffuse = auxiliary["primary_depth"], auxiliary["secondary_diffuse"]
+    # A path's vertices: whole numbers, none for a camera ray that misses, at most the camera hit and one per bounce.
+    vertices = auxiliary["path_vertices"]
+    assert np.array_equal(vertices, np.rint(vertices)) and vertices.max() <= len(layout.vertices) + 1
+    assert np.array_equal(vertices == 0, ~np.isfinite(depth)) and vertices.max() > 1
     slope = shadow_slope(auxiliary["light_distance"], auxiliary["occluder_distance"])
     blocked = np.isfinite(slope)
     per_sample = {"direct_rgb": auxiliary["direct_light"], "least_shadow_slope": slope,
                   "greatest_shadow_slope": np.where(blocked, slope, -np.inf),
                   "least_penumbra": np.where(blocked, auxiliary["light_size"] * np.where(blocked, slope, 0.0), np.inf),
                   "rgb": values, "rgb_squared": values.astype(np.float32) ** 2,
-                  "diffuse_rgb": np.where(diffuse[:, None], values, 0.0), "albedo": auxiliary["diffuse_albedo"],
+                  "diffuse_rgb": np.where(diffuse[:, None], values, 0.0),
+                  "diffuse_rgb_squared": np.where(diffuse[:, None], values.astype(np.float32) ** 2, 0.0), "albedo": auxiliary["diffuse_albedo"],
                   "normal": auxiliary["primary_normal"], "depth": np.where(np.isfinite(depth), depth, 0.0),
                   "hits": np.isfinite(depth).astype(np.float64), "nearest": depth, "farthest": depth,
-                  "shortest": np.where(diffuse, auxiliary["secondary_distance"], np.inf)}
+                  "shortest": np.where(diffuse, auxiliary["secondary_distance"], np.inf), "path_vertices": vertices}
     uniform, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp)
     halves, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp, halves=True)
     later, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp // 2, first_sample=spp // 2)
@@ -701,9 +706,10 @@ def test_explicit_lanes_must_be_sorted_by_pixel():
                                       halves=True)
 
 
-def _half(context, noisy_columns, spp=2):
+def _half(context, noisy_columns, spp=2, vertices=1.0):
     """Pilot-half statistics by hand on ``context``'s film: every pixel in focus (no width, ``r_p = 1``), mean 1,
-    and a per-sample variance of 100 in ``noisy_columns``, 0.01 elsewhere."""
+    a per-sample variance of 100 in ``noisy_columns``, 0.01 elsewhere, and ``vertices`` path vertices per sample
+    (a number or a ``(height, width)`` array)."""
     from sparselt.methods.axis_aligned import PixelStatistics
 
     width, height = context.resolution
@@ -713,7 +719,8 @@ def _half(context, noisy_columns, spp=2):
     mean = np.ones((height * width, 3))
     statistics = PixelStatistics((height, width))
     statistics.add({"rgb": spp * mean, "rgb_squared": spp * (mean ** 2 + variance.reshape(-1, 1)),
-                    "nearest": np.full(height * width, focus), "farthest": np.full(height * width, focus)}, spp)
+                    "nearest": np.full(height * width, focus), "farthest": np.full(height * width, focus),
+                    "path_vertices": spp * np.broadcast_to(vertices, (height, width)).reshape(-1)}, spp)
     return statistics
 
 
@@ -731,8 +738,70 @@ def test_the_held_out_gain_keeps_an_allocation_both_halves_agree_on_and_drops_on
     from sparselt.methods.axis_aligned import allocate_samples
 
     relative = _half(context, left).relative_variance()
-    counts = allocate_samples(relative, np.ones_like(relative), 12 * relative.size, 124) + 4
+    counts = allocate_samples(relative, 12 * relative.size, 124) + 4
     assert same == pytest.approx(relative.sum() / 16 / np.sum(relative / counts), rel=1e-12)
+
+
+def test_the_held_out_gain_counts_the_cost_of_the_paths_it_buys(soft_shadow_dof_context):
+    """The same noisy columns, whose paths cost ten times the others': the allocation buys their variance with
+    costlier samples, so it scores lower than at equal costs, as the formula by hand says (error x cost of the
+    uniform budget over the allocation's); with ``sample_cost=uniform`` the cost is not weighed."""
+    from sparselt.methods.axis_aligned import allocate_samples
+
+    context = soft_shadow_dof_context
+    width, height = context.resolution
+    left = slice(0, 4)
+    vertices = np.ones((height, width))
+    vertices[:, left] = 10.0
+    halves = [_half(context, left, vertices=vertices), _half(context, left, vertices=vertices)]
+    method = get_method("aaf-dof")
+    costly = method.held_out_gain(context, method.options, halves, 16, 4, 124)
+    cheap = method.held_out_gain(context, method.options, [_half(context, left), _half(context, left)], 16, 4, 124)
+    uniform = get_method("aaf-dof:sample_cost=uniform")
+    unweighed = uniform.held_out_gain(context, uniform.options, halves, 16, 4, 124)
+    assert 1.0 < costly < cheap == pytest.approx(unweighed, rel=1e-12), (costly, cheap, unweighed)
+    relative, cost = halves[0].relative_variance(), halves[0].sample_cost()
+    counts = allocate_samples(relative, 12 * relative.size, 124, cost) + 4
+    by_hand = relative.sum() / 16 * 16 * cost.sum() / (np.sum(relative / counts) * np.sum(cost * counts))
+    assert costly == pytest.approx(by_hand, rel=1e-12)
+
+
+def test_allocate_samples_solves_the_cost_constrained_problem():
+    """n_p = min(cap, lambda sqrt(w_p / c_p)): the budget's cost spent (to rounding), no pixel above the cap, the
+    capped pixels' excess given to the others, each count within rounding of its ideal, and no exchange of samples between two pixels at equal
+    cost lowers sum(w_p / n_p) by more than the rounding allows. With equal costs: n_p proportional to
+    sqrt(w_p) (Mehta et al.), exactly the samples asked for."""
+    from sparselt.methods.axis_aligned import allocate_samples
+
+    generator = np.random.default_rng(7)
+    weight = generator.lognormal(0.0, 2.0, (24, 32))
+    cost = 0.5 + generator.integers(0, 6, (24, 32)).astype(np.float64)
+    extra, cap = 20 * weight.size, 120
+    counts = allocate_samples(weight, extra, cap, cost)
+    budget = extra * cost.mean()
+    spent = np.sum(counts * cost)
+    assert abs(spent - budget) <= 1e-3 * budget
+    assert counts.max() == cap and counts.min() >= 0
+    uncapped = counts < cap
+    # Every count is its ideal rounded: min(cap, lambda sqrt(w / c)), lambda from the budget left to the uncapped.
+    rate = np.sqrt(weight / cost)
+    multiplier = (budget - cap * cost[~uncapped].sum()) / np.sum((cost * rate)[uncapped])
+    assert np.all(np.abs(counts - np.minimum(cap, multiplier * rate)) < 1.0 + 1e-6)
+    assert np.all(multiplier * rate[~uncapped] >= cap - 1)
+    # Moving one sample's cost from the pixel that loses least to the one that gains most does not pay (pixels of
+    # at least 10 samples, where rounding moves a marginal gain by less than a fifth).
+    many = counts >= 10
+    loss = weight / np.maximum(counts - 1, 1) - weight / np.maximum(counts, 1)  # error added by one sample fewer
+    gain = weight / np.maximum(counts, 1) - weight / (counts + 1)  # removed by one more
+    donor = np.argmin(np.where(many, loss / cost, np.inf))
+    taker = np.argmax(np.where(many & uncapped, gain / cost, -np.inf))
+    assert gain.flat[taker] / cost.flat[taker] <= 1.5 * loss.flat[donor] / cost.flat[donor]
+    equal = allocate_samples(weight, extra, 10 ** 6)
+    assert equal.sum() == extra
+    big = equal > 50
+    proportional = equal[big] / np.sqrt(weight[big])
+    assert proportional.std() / proportional.mean() < 0.02
+    assert np.array_equal(equal, allocate_samples(weight, extra, 10 ** 6, np.full_like(weight, 3.0)))
 
 
 @pytest.mark.parametrize("row, plan", [
@@ -879,3 +948,34 @@ def test_factored_aaf_dof_keeps_the_method_contract(soft_shadow_dof_context):
     assert report["result"].image.shape == (16, 24, 3)
     assert report["drawn"] >= 16 * 24 * 4
     assert report["result"].details["factoring"] == "direct"
+
+
+def test_the_check_reads_every_other_pixel_of_every_other_row():
+    """PixelStatistics.subsampled keeps the pass's values and counts at pixels (2i, 2j), and nothing else."""
+    from sparselt.methods.axis_aligned import PixelStatistics
+
+    height, width = 5, 6
+    values = {"rgb": np.arange(height * width * 3, dtype=np.float64).reshape(-1, 3),
+              "nearest": np.arange(height * width, dtype=np.float64)}
+    small = PixelStatistics.subsampled(values, 4, (height, width), 2)
+    assert small.shape == (3, 3) and np.all(small.counts == 4)
+    np.testing.assert_array_equal(small.total("rgb"), values["rgb"].reshape(height, width, 3)[::2, ::2])
+    np.testing.assert_array_equal(small.total("nearest"), values["nearest"].reshape(height, width)[::2, ::2])
+
+
+def test_aaf_indirect_weighs_only_the_diffuse_part_by_the_filter():
+    """A pixel of four samples, two of 0 and two of 2 (mean 1, sample variance 4/3, relative 4/3 / 1.01): with its
+    noise in its diffuse-lobe samples, aaf-indirect predicts v r_p after filtering; with it in the rest (glossy),
+    v, the filter cannot lower it; aaf-dof, whose filter takes the whole pixel, v r_p either way."""
+    from sparselt.methods.axis_aligned import PixelStatistics
+
+    relative, factor = (4.0 / 3.0) / 1.01, np.full((1, 1), 0.25)
+    for diffuse_share, indirect_expected in ((1.0, relative * 0.25), (0.0, relative)):
+        statistics = PixelStatistics((1, 1))
+        statistics.add({"rgb": np.full((1, 3), 4.0), "rgb_squared": np.full((1, 3), 8.0),
+                        "diffuse_rgb": np.full((1, 3), 4.0 * diffuse_share),
+                        "diffuse_rgb_squared": np.full((1, 3), 8.0 * diffuse_share)}, 4)
+        np.testing.assert_allclose(statistics.relative_variance(), relative)
+        np.testing.assert_allclose(get_method("aaf-indirect").filtered_variance(statistics, factor),
+                                   indirect_expected)
+        np.testing.assert_allclose(get_method("aaf-dof").filtered_variance(statistics, factor), relative * 0.25)

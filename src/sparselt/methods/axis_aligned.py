@@ -62,22 +62,41 @@ of the budget goes where it lowers the filtered image's expected relMSE most,
 ``n_p`` proportional to ``sqrt(v_p r_p)`` (:func:`allocate_samples`, ``v_p``
 the pilot's per-sample variance over ``(mean luminance)^2 + 0.01``, the
 relMSE's own weighting, smoothed over 5x5 pixels), each pixel at most
-``maximum_allocation`` times ``spp``. Every sample is counted. The papers
-derive the counts from the bandlimits alone; ours add the measured variance,
-because in-focus pixels (no filtering at all) carry most of the error.
-The final widths come from all of a pixel's samples.
+``maximum_allocation`` times ``spp`` (a capped pixel's excess goes to the
+others). ``aaf-indirect`` filters only the diffuse-lobe part of a pixel, so
+its ``v_p r_p`` is the diffuse part's variance times ``r_p`` plus the rest's
+(:meth:`AafIndirect.filtered_variance`): a pixel whose noise is in its glossy
+samples gains nothing from the filter. Every sample is counted. The papers derive the counts from the
+bandlimits alone; ours add the measured variance, because in-focus pixels (no
+filtering at all) carry most of the error. The final widths come from all of
+a pixel's samples.
+
+**Samples cost what their paths cost** (``sample_cost='vertices'``, the
+default). Equal time, not equal samples, is the comparison, and the pixels an
+allocation favours often have long paths: on dof-sculptures the allocated
+lanes cost 1.47 times as many uniform ones, on courtyard 1.31 times. The pilot
+reduces each sample's path vertices in its kernel (``path_vertices``); a
+pixel's cost per sample is ``c_p = 0.5 +`` their mean
+(:data:`FIXED_SAMPLE_COST`, :meth:`PixelStatistics.sample_cost`), and the
+allocation minimises the predicted relMSE at the cost of the uniform rest,
+``n_p`` proportional to ``sqrt(v_p r_p / c_p)``: fewer samples, no dearer in
+total, where paths are long. ``sample_cost='uniform'`` is the papers' rule.
 
 **When not to allocate** (issue 37: "where the analysis predicts no gain, no
-extra cost"). Measured over the suite's scenes, the allocation helped where a
-few pixels hold most of the error (dof-sculptures' in-focus gold, sunlit-room's
-fireflies: 1.3x and 2.8x less relMSE x time than the same filter on uniform
-samples) and hurt elsewhere (courtyard 1.6x, glossy-interior 1.2x, user-dof
-1.2x worse; outdoor-texture too, with the albedo of every sample): a pixel
-whose few pilot samples all took the glossy lobe gets no width and draws many
-samples, and allocated samples fall on long, costly paths
-(``docs/experiments/README.md``, issue 37's eighth session). So the pilot is drawn in two halves in its one launch, and the
-allocation is kept only where the one from each half lowers the other half's
-predicted error at least ``allocation_gain`` times
+extra cost"). Measured over the suite's scenes (eighth session), the papers'
+allocation helped where a few pixels hold most of the error (dof-sculptures'
+in-focus gold, sunlit-room's fireflies) and hurt elsewhere (courtyard,
+glossy-interior, outdoor-texture, user-dof): a pixel whose few pilot samples
+all took the glossy lobe gets no width and draws many samples, and allocated
+samples fall on long, costly paths. With the cost and the glossy part in the
+model (ninth session) the allocation wins on six of the eight scenes at
+256x256 (``docs/experiments/README.md``); it still loses on outdoor-texture,
+whose error is the filter's, not the variance the model sees. So the pilot is
+drawn in two halves in its one launch, and the allocation is kept only where
+the one from each half lowers the other half's predicted error times cost at
+least ``allocation_gain`` times (1.2: the check, the second launch and the
+allocation's own passes cost 5-15% at 256x256), read on every other pixel of
+every other row (:data:`CHECK_STEP`)
 (:meth:`_AxisAligned.held_out_gain`); otherwise the rest is uniform. A budget
 below ``single_launch_below`` samples is drawn in one uniform launch: a
 launch's fixed cost (tracing, code generation: 10-14 ms on 2 cores) is
@@ -117,6 +136,15 @@ from .registry import register
 
 
 STATISTICS_LIMIT = 1 << 22  # lanes per allocated launch
+#: A sample's cost beyond its path vertices, in path vertices (the lane's set-up and camera ray), for
+#: :meth:`PixelStatistics.sample_cost`. Measured: the allocated lanes of five of the suite's scenes cost 0.53-1.47
+#: times the same number of uniform lanes; cost ``0.5 + vertices`` predicts 0.47-1.37 (docs/experiments/README.md,
+#: issue 37's ninth session).
+FIXED_SAMPLE_COST = 0.5
+#: The held-out check (:meth:`_AxisAligned.held_out_gain`) reads every ``CHECK_STEP``-th pixel of every
+#: ``CHECK_STEP``-th row: its score is a ratio of sums over the image, which a quarter of the pixels estimate, at a
+#: quarter of the cost (about 45 ms at 256x256 for ``aaf-indirect`` on every pixel).
+CHECK_STEP = 2
 
 
 def _maximum_radius():
@@ -136,11 +164,16 @@ class AxisAlignedOptions(MethodOptions):
                                         "pixel gets spp samples")
     maximum_allocation: float = option(8.0, minimum=1.0, help="no pixel gets more than this many times the "
                                        "budget's spp")
-    allocation_gain: float = option(1.5, minimum=0.0,
+    allocation_gain: float = option(1.2, minimum=0.0,
                                     help="allocate only where the allocation from one half of the pilot lowers the "
-                                         "other half's predicted relMSE at least this many times (both ways, "
-                                         "geometric mean); otherwise the rest is uniform. 0: always allocate (the "
-                                         "papers' rule)")
+                                         "other half's predicted relMSE x cost at least this many times (both ways, "
+                                         "geometric mean; 1.2 pays for the check and the second launch); otherwise "
+                                         "the rest is uniform. 0: always allocate (the papers' rule)")
+    sample_cost: str = option("vertices", choices=("vertices", "uniform"),
+                              help="vertices: the allocation weighs each pixel's expected cost per sample (0.5 plus "
+                                   "the mean number of path vertices its pilot samples reached), n_p ~ "
+                                   "sqrt(v_p r_p / c_p), and spends what the uniform samples would cost; uniform: "
+                                   "every sample costs the same (the papers' rule)")
     single_launch_below: int = option(1 << 20, minimum=0,
                                       help="a budget of fewer samples (pixels x spp; default 2^20, a 256x256 image "
                                            "at 16 spp) is drawn uniformly in one launch, no pilot: a second "
@@ -188,21 +221,29 @@ class PixelStatistics:
         self.counts = np.zeros(int(np.prod(shape)), dtype=np.int64)
         self._values, self._counts = {}, {}
 
-    def add(self, statistics, counts, *, copy=True):
-        """Merge one pass: ``statistics`` name -> per-pixel reduction, ``counts`` its samples per pixel.
-
-        ``copy=False`` keeps the first pass's arrays as they are (for statistics read, never merged into).
-        """
+    def add(self, statistics, counts):
+        """Merge one pass: ``statistics`` name -> per-pixel reduction, ``counts`` its samples per pixel."""
         counts = np.broadcast_to(np.asarray(counts, dtype=np.int64), self.counts.shape)
         for name, value in statistics.items():
             if name not in self._values:
-                self._values[name] = np.array(value, dtype=np.float64) if copy else value
+                self._values[name] = np.array(value, dtype=np.float64)
                 self._counts[name] = counts.copy()
                 continue
             merge, _ = REDUCTIONS[PIXEL_STATISTICS[name]]
             merge(self._values[name], value, out=self._values[name])
             self._counts[name] += counts
         self.counts += counts
+
+    @classmethod
+    def subsampled(cls, statistics, counts, shape, step):
+        """One pass's statistics (as :meth:`add` takes them) of every ``step``-th pixel of every ``step``-th row
+        of an image of ``shape``: a smaller image, as if only those pixels had been drawn."""
+        height, width = shape
+        rows, columns = np.arange(0, height, step), np.arange(0, width, step)
+        pixels = (rows[:, None] * width + columns[None, :]).reshape(-1)  # gathered, not a full-size reshaped copy
+        result = cls((rows.size, columns.size))
+        result.add({name: np.asarray(value)[pixels] for name, value in statistics.items()}, counts)
+        return result
 
     def total(self, name):
         """The reduction of ``name`` per pixel, shape ``(height, width, ...)``."""
@@ -215,22 +256,34 @@ class PixelStatistics:
         total = self.total(name)
         return total / counts.reshape(counts.shape + (1,) * (total.ndim - 2))
 
-    def relative_variance(self):
+    def relative_variance(self, total=None, squares=None):
         """Per-pixel variance of one sample (RGB mean) over (mean luminance^2 + 0.01), smoothed over 5x5 pixels.
 
-        From ``rgb`` and ``rgb_squared`` (the pilot's).
+        From ``rgb`` and ``rgb_squared`` (the pilot's); or of a part of each
+        sample, from that part's per-pixel ``total`` and sum of ``squares``
+        over the same samples (relative to the whole pixel's luminance).
         """
         from ..images import luminance
 
         count = np.maximum(self._counts["rgb_squared"], 2).reshape(self.shape)[..., None].astype(np.float64)
         mean = self.total("rgb") / count
-        variance = variance_from_sums(self.total("rgb"), self.total("rgb_squared"), count, form="moment")
+        variance = variance_from_sums(self.total("rgb") if total is None else total,
+                                      self.total("rgb_squared") if squares is None else squares, count, form="moment")
         level = luminance(mean)
-        relative = variance.mean(axis=-1) / (level * level + 0.01)
-        padded = np.pad(relative, 2, mode="edge")
-        height, width = relative.shape
-        rows = sum(padded[:, offset:offset + width] for offset in range(5))  # the 5x5 box, separably
-        return sum(rows[offset:offset + height] for offset in range(5)) / 25.0
+        return _box_mean(variance.mean(axis=-1) / (level * level + 0.01))
+
+    def sample_cost(self):
+        """Each pixel's expected cost per sample in path vertices, ``FIXED_SAMPLE_COST`` plus the mean number of
+        vertices its samples reached (``path_vertices``, the pilot's), smoothed over 5x5 pixels."""
+        return _box_mean(FIXED_SAMPLE_COST + self.mean("path_vertices"))
+
+
+def _box_mean(image):
+    """The mean over each pixel's 5x5 neighbourhood (edges repeated), computed separably."""
+    padded = np.pad(image, 2, mode="edge")
+    height, width = image.shape
+    rows = sum(padded[:, offset:offset + width] for offset in range(5))
+    return sum(rows[offset:offset + height] for offset in range(5)) / 25.0
 
 
 def filter_variance_factor(sigma, maximum_radius):
@@ -278,38 +331,58 @@ def _variance_factor_table(maximum_radius):
     return table
 
 
-def allocate_samples(relative_variance, variance_factor, extra_total, cap):
-    """Extra samples per pixel minimising the filtered image's expected relMSE (Lagrange: ``n_p ∝ sqrt(v_p r_p)``).
+def allocate_samples(weight, extra_total, cap, cost=None):
+    """Extra samples per pixel minimising the filtered image's expected relMSE at a given sampling cost.
+
+    Minimises ``sum(w_p / n_p)`` subject to ``sum(c_p n_p) = B`` and
+    ``n_p <= cap`` (Lagrange and the Karush-Kuhn-Tucker conditions):
+    ``n_p = min(cap, lambda sqrt(w_p / c_p))``, ``lambda`` set so that the
+    budget is spent; the capped pixels' excess goes to the others. ``B`` is
+    what ``extra_total`` uniform samples cost, ``extra_total`` times the mean
+    cost. With every ``c_p`` equal this is Mehta et al.'s ``n_p``
+    proportional to ``sqrt(w_p)`` with ``w_p = v_p r_p``. The counts are
+    rounded systematically (each pixel's share of the running sum of the
+    ideal counts, in pixel order): each within one of its ideal, their sum the
+    ideal sum rounded down, no sort.
 
     Parameters
     ----------
-    relative_variance : ndarray
-        Per-pixel variance of one sample over (mean luminance^2 + 0.01), from the pilot.
-    variance_factor : ndarray
-        :func:`filter_variance_factor` (the filter divides a pixel's variance by about ``1 / r_p``).
+    weight : ndarray
+        ``w_p``, each pixel's predicted relative variance of one sample after filtering
+        (:meth:`_AxisAligned.allocation_weight`).
     extra_total : int
-        Samples to hand out.
+        Samples whose uniform cost is the budget.
     cap : int
         No pixel gets more.
+    cost : ndarray, optional
+        ``c_p``, a pixel's expected cost per sample (:meth:`PixelStatistics.sample_cost`); default: every
+        sample costs the same.
 
     Returns
     -------
-    ndarray of int64, same shape; sums to at most ``extra_total``.
+    ndarray of int64, same shape as ``weight``.
     """
-    weight = np.sqrt(np.maximum(relative_variance, 0.0) * variance_factor).reshape(-1)
-    if extra_total <= 0 or not np.any(weight > 0):
-        share = np.full(weight.size, min(cap, extra_total // max(1, weight.size)), dtype=np.int64)
-        return share.reshape(np.shape(relative_variance))
-    ideal = np.minimum(extra_total * weight / weight.sum(), cap)
-    counts = np.floor(ideal).astype(np.int64)
-    left = min(int(extra_total - counts.sum()), counts.size)
-    if left > 0:  # one more each for the largest remainders (ties: the lower pixel index first)
-        remainder = ideal - counts
-        threshold = np.partition(remainder, remainder.size - left)[remainder.size - left]
-        above = np.flatnonzero(remainder > threshold)
-        order = np.concatenate((above, np.flatnonzero(remainder == threshold)[:left - above.size]))
-        counts[order] = np.minimum(counts[order] + 1, cap)
-    return counts.reshape(np.shape(relative_variance))
+    shape = np.shape(weight)
+    weight = np.maximum(np.asarray(weight, dtype=np.float64), 0.0).reshape(-1)
+    cost = np.ones(weight.size) if cost is None else np.asarray(cost, dtype=np.float64).reshape(-1)
+    if extra_total <= 0 or cap <= 0 or not np.any(weight > 0):
+        share = np.full(weight.size, max(0, min(cap, extra_total // max(1, weight.size))), dtype=np.int64)
+        return share.reshape(shape)
+    budget = float(extra_total) * float(cost.mean())
+    rate = np.sqrt(weight / cost)  # n_p = min(cap, lambda rate_p)
+    capped = np.zeros(weight.size, dtype=bool)
+    with np.errstate(invalid="ignore"):  # inf * 0 where only zero rates are left uncapped
+        while True:  # the capped set only grows: at most a few passes
+            free = float(np.sum(np.where(capped, 0.0, cost * rate)))
+            scale = (budget - cap * float(np.sum(cost[capped]))) / free if free > 0 else np.inf
+            now = capped | (scale * rate >= cap)
+            if np.array_equal(now, capped) or not np.isfinite(scale):
+                break
+            capped = now
+    ideal = np.where(capped, float(cap), np.minimum(scale * rate, cap) if np.isfinite(scale) else 0.0)
+    running = np.floor(np.cumsum(ideal) + 1e-4)  # 1e-4: the running sum's rounding, far below one sample
+    counts = np.diff(running, prepend=0.0).astype(np.int64)
+    return np.minimum(counts, cap).reshape(shape)
 
 
 def _summary(sigma):
@@ -355,7 +428,8 @@ class _AxisAligned(Method):
         width, height = context.resolution
         pilot_spp, plan = self._pilot_plan(options, budget.spp, width * height, warming)
         statistics = PixelStatistics((height, width))
-        names = ("rgb_squared",) + self.pilot_statistics + self.statistics
+        names = ("rgb_squared",) + (("path_vertices",) if options.sample_cost == "vertices" else ()) + \
+            self.pilot_statistics + self.statistics
         with timer("sampling"):
             pilot, nonfinite = context.scene.sample_pixel_statistics(
                 context.layout, context.grid_shape, budget.seed, names, spp=pilot_spp, halves=plan == "held-out")
@@ -364,9 +438,8 @@ class _AxisAligned(Method):
             halves = []
             for part in parts:
                 statistics.add(part, pilot_spp // len(parts))
-                if plan == "held-out":
-                    halves.append(PixelStatistics((height, width)))
-                    halves[-1].add(part, pilot_spp // 2, copy=False)
+                if plan == "held-out":  # every other pixel of every other row: the check's ratios of sums
+                    halves.append(PixelStatistics.subsampled(part, pilot_spp // 2, (height, width), CHECK_STEP))
         details = {}
         if pilot_spp < budget.spp:
             with timer("other"):
@@ -376,8 +449,8 @@ class _AxisAligned(Method):
                 allocate = warming == "allocated" or (warming is None and (gain is None or
                                                                            gain >= options.allocation_gain))
                 if allocate:
-                    extra = allocate_samples(*self._variance_and_factor(context, options, statistics), extra_total,
-                                             cap)
+                    weight, cost = self.allocation_weight(context, options, statistics)
+                    extra = allocate_samples(weight, extra_total, cap, cost)
                 details.update(allocation="allocated" if allocate else "uniform (held-out gain below allocation_gain)",
                                allocation_held_out_gain=gain if gain is not None else "")
             if allocate:
@@ -399,7 +472,8 @@ class _AxisAligned(Method):
                        smallest_pixel_spp=int(statistics.counts.min()), nonfinite_samples=nonfinite,
                        width_scale=options.width_scale, maximum_radius=options.maximum_radius,
                        pilot_fraction=options.pilot_fraction, maximum_allocation=options.maximum_allocation,
-                       allocation_gain=options.allocation_gain, single_launch_below=options.single_launch_below)
+                       allocation_gain=options.allocation_gain, single_launch_below=options.single_launch_below,
+                       sample_cost=options.sample_cost)
         details.update(_summary(sigma))
         return MethodResult(image=np.asarray(image, dtype=np.float32), path_samples=int(statistics.counts.sum()),
                             details=details)
@@ -423,32 +497,44 @@ class _AxisAligned(Method):
             return (pilot_spp, "held-out") if pilot_spp < spp else (spp, "one launch (pilot_fraction covers the budget)")
         return pilot_spp, "allocated"
 
-    def _variance_and_factor(self, context, options, statistics):
-        """``(v_p, r_p)``: each pixel's relative variance per sample and the variance factor of its filter width,
-        what :func:`allocate_samples` weighs."""
+    def allocation_weight(self, context, options, statistics):
+        """``(w_p, c_p)``: each pixel's predicted relative variance of one sample after filtering, ``v_p r_p``
+        (:meth:`filtered_variance`), and its cost per sample (None where ``sample_cost`` is uniform): what
+        :func:`allocate_samples` weighs."""
         sigma, _ = self.widths(context, options, statistics)
-        return statistics.relative_variance(), filter_variance_factor(sigma, options.maximum_radius)
+        cost = statistics.sample_cost() if options.sample_cost == "vertices" else None
+        return self.filtered_variance(statistics, filter_variance_factor(sigma, options.maximum_radius)), cost
+
+    def filtered_variance(self, statistics, factor):
+        """Each pixel's relative variance of one sample after the filter divides it by ``1 / factor``: the whole
+        pixel's, ``v_p r_p``."""
+        return statistics.relative_variance() * factor
 
     def held_out_gain(self, context, options, halves, spp, pilot_spp, cap):
-        """How many times the allocation from one pilot half lowers the other half's predicted relMSE.
+        """How many times the allocation from one pilot half lowers the other half's predicted relMSE x cost.
 
         The allocation :func:`allocate_samples` derives from half ``A``
         (``n_p``, with the pilot's own ``pilot_spp``) is scored on half ``B``'s
-        per-pixel variances and filter factors ``w_p = v_p r_p``: the ratio of
-        the uniform budget's predicted error ``sum(w_p) / spp`` to
-        ``sum(w_p / n_p)``; then ``B`` on ``A``; their geometric mean. An
+        per-pixel variances, filter factors and costs, ``w_p = v_p r_p`` and
+        ``c_p``: the uniform budget's predicted error times its cost,
+        ``sum(w_p) / spp * spp sum(c_p)``, over the allocation's,
+        ``sum(w_p / n_p) * sum(c_p n_p)``; then ``B`` on ``A``; their
+        geometric mean (with ``sample_cost`` uniform, every ``c_p`` is 1 and
+        the costs cancel: ``sum(w_p) / spp`` over ``sum(w_p / n_p)``). An
         allocation that chases one half's noise (a firefly, a pixel whose
-        few pilot samples missed the diffuse lobe and so got no width)
-        scores near or below 1 on the other half. 1 where the pilot shows no
-        variance.
+        few pilot samples missed the diffuse lobe and so got no width), or
+        that buys its error with costlier paths, scores near or below 1 on
+        the other half. 1 where the pilot shows no variance.
         """
         extra_total = (spp - pilot_spp) * int(halves[0].counts.size)
-        analysed = [self._variance_and_factor(context, options, statistics) for statistics in halves]
+        analysed = [self.allocation_weight(context, options, statistics) for statistics in halves]
         scores = []
-        for (variance, factor), (held_variance, held_factor) in (analysed, analysed[::-1]):
-            allocated = allocate_samples(variance, factor, extra_total, cap) + pilot_spp
-            weight = held_variance * held_factor
+        for (weight, cost), (held_weight, held_cost) in (analysed, analysed[::-1]):
+            allocated = allocate_samples(weight, extra_total, cap, cost) + pilot_spp
+            weight = held_weight
             predicted = float(np.sum(weight / allocated))
+            if held_cost is not None:
+                predicted *= float(np.sum(held_cost * allocated)) / (spp * float(np.sum(held_cost)))
             scores.append(float(np.sum(weight)) / spp / predicted if predicted > 0 else 1.0)
         return float(math.sqrt(scores[0] * scores[1]))
 
@@ -594,7 +680,7 @@ class AafIndirect(_AxisAligned):
     # The albedo from every sample, as the diffuse light it demodulates (a pilot-only albedo divided a textured
     # pixel's light by a few of its samples' reflectance: 1.5x the relMSE of one uniform pass on outdoor-texture).
     statistics = ("rgb", "diffuse_rgb", "shortest", "albedo")
-    pilot_statistics = ("normal", "depth", "hits")
+    pilot_statistics = ("normal", "depth", "hits", "diffuse_rgb_squared")
     description = ("axis-aligned filter for diffuse indirect light (Mehta et al. 2013): width from the shortest "
                    "diffuse secondary ray per pixel, albedo-demodulated, glossy-lobe samples unfiltered; "
                    "a quarter of the budget as pilot, the rest allocated per pixel")
@@ -605,6 +691,16 @@ class AafIndirect(_AxisAligned):
                                                    bandlimit=options.bandlimit)
         safe = _demodulable(statistics)
         return options.width_scale * np.where(safe, sigma, 0.0), options.width_scale * sigma_world
+
+    def filtered_variance(self, statistics, factor):
+        """Only the diffuse part is filtered: ``v_diffuse r_p + v_rest`` (relative variances of one sample's
+        diffuse-lobe part and of the rest, from the pilot's sums and sums of squares of each; a sample is one or
+        the other, so the rest's are the differences). A pixel whose noise is in its glossy samples gains nothing
+        from the filter, and the allocation sees that."""
+        diffuse, diffuse_squares = statistics.total("diffuse_rgb"), statistics.total("diffuse_rgb_squared")
+        rest = statistics.relative_variance(statistics.total("rgb") - diffuse,
+                                            statistics.total("rgb_squared") - diffuse_squares)
+        return statistics.relative_variance(diffuse, diffuse_squares) * factor + rest
 
     def finish(self, context, options, statistics):
         sigma, sigma_world = self.widths(context, options, statistics)

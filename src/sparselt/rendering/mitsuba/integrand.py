@@ -35,7 +35,7 @@ from .runtime import modules
 #: al. 2012, 3); the blocker's ray is traced only where ``occluder_distance`` is evaluated (Dr.Jit is lazy).
 AUXILIARY_QUANTITIES = ("primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance",
                         "secondary_diffuse", "lens_u", "lens_v", "camera_emission", "direct_light", "light_distance",
-                        "occluder_distance", "light_size")
+                        "occluder_distance", "light_size", "path_vertices")
 
 
 def path_contribution(scene, layout, samples, auxiliary=None):
@@ -79,6 +79,7 @@ def path_contribution(scene, layout, samples, auxiliary=None):
         if auxiliary is not None:
             auxiliary["camera_emission"] = mi.Color3f(result)
 
+    vertices = dr.select(interaction.is_valid(), mi.Float(1.0), mi.Float(0.0))
     for index, plan in enumerate(layout.vertices, start=1):
         first = auxiliary is not None and index == 1
         parts = {} if first else None
@@ -89,7 +90,10 @@ def path_contribution(scene, layout, samples, auxiliary=None):
             hit = active & next_interaction.is_valid()
             auxiliary["secondary_distance"] = dr.select(hit, next_interaction.t, dr.inf)
             auxiliary["secondary_diffuse"] = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Diffuse)
+        vertices += dr.select(active & next_interaction.is_valid(), mi.Float(1.0), mi.Float(0.0))
         interaction = next_interaction
+    if auxiliary is not None:
+        auxiliary["path_vertices"] = vertices
     return result
 
 

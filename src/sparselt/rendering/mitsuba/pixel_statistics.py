@@ -26,18 +26,22 @@ from .runtime import modules
 
 #: Per-pixel statistics :func:`sample_pixel_statistics` reduces, and their reduction.
 #: ``rgb`` / ``rgb_squared``: the path contribution and its square; ``diffuse_rgb``: the contribution of samples
-#: whose secondary ray came from a diffuse lobe; ``albedo``, ``normal``: the camera hit's diffuse reflectance and
+#: whose secondary ray came from a diffuse lobe, ``diffuse_rgb_squared`` its square; ``albedo``, ``normal``: the
+#: camera hit's diffuse reflectance and
 #: shading normal; ``depth``, ``hits``: the camera hit's depth and 1 (0 for a miss); ``nearest``, ``farthest``:
 #: the camera hit's depth (``inf`` for a miss); ``shortest``: the diffuse-lobe secondary ray's length (``inf``
 #: otherwise); ``direct_rgb``: the first vertex's direct lighting (``direct_light``, 0 where the contribution was
 #: not finite); ``least_shadow_slope``, ``greatest_shadow_slope``: the slope ``s = d1 / d2 - 1`` of a blocked
 #: light sample (``inf`` / ``-inf`` where not blocked; Mehta et al. 2012's ``s2`` and ``s1``);
 #: ``least_penumbra``: ``sigma_l s`` of a blocked sample, the light's size times its slope (``inf`` otherwise),
-#: what the soft shadow's bandlimit needs (:func:`sparselt.filters.axis_aligned.shadow_filter_width`).
-PIXEL_STATISTICS = {"rgb": "sum", "rgb_squared": "sum", "diffuse_rgb": "sum", "albedo": "sum", "normal": "sum",
+#: what the soft shadow's bandlimit needs (:func:`sparselt.filters.axis_aligned.shadow_filter_width`);
+#: ``path_vertices``: the vertices the sample's path reached (the camera hit and each bounce's hit; 0 for a
+#: camera ray that misses), the allocation's cost model.
+PIXEL_STATISTICS = {"rgb": "sum", "rgb_squared": "sum", "diffuse_rgb": "sum", "diffuse_rgb_squared": "sum",
+                    "albedo": "sum", "normal": "sum",
                     "depth": "sum", "hits": "sum", "nearest": "min", "farthest": "max", "shortest": "min",
                     "direct_rgb": "sum", "least_shadow_slope": "min", "greatest_shadow_slope": "max",
-                    "least_penumbra": "min"}
+                    "least_penumbra": "min", "path_vertices": "sum"}
 #: Each reduction as the numpy ufunc that merges two partial results, and its identity.
 REDUCTIONS = {"sum": (np.add, 0.0), "min": (np.minimum, np.inf), "max": (np.maximum, -np.inf)}
 
@@ -56,10 +60,14 @@ def statistic_quantity(name, value, recorded, finite=None):
         return dr.select(blocked, slope, dr.inf if name == "least_shadow_slope" else -dr.inf)
     if name == "rgb":
         return value
+    if name == "path_vertices":
+        return recorded["path_vertices"]
     if name == "rgb_squared":
         return value * value
     if name == "diffuse_rgb":
         return dr.select(recorded["secondary_diffuse"], value, 0.0)
+    if name == "diffuse_rgb_squared":
+        return dr.select(recorded["secondary_diffuse"], value * value, 0.0)
     if name == "albedo":
         return recorded["diffuse_albedo"]
     if name == "normal":
