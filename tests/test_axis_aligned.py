@@ -767,10 +767,12 @@ def test_the_held_out_gain_counts_the_cost_of_the_paths_it_buys(soft_shadow_dof_
 
 
 def test_allocate_samples_solves_the_cost_constrained_problem():
-    """n_p = min(cap, lambda sqrt(w_p / c_p)): the budget's cost spent (to rounding), no pixel above the cap, the
-    capped pixels' excess given to the others, each count within rounding of its ideal, and no exchange of samples between two pixels at equal
-    cost lowers sum(w_p / n_p) by more than the rounding allows. With equal costs: n_p proportional to
-    sqrt(w_p) (Mehta et al.), exactly the samples asked for."""
+    """n_p = min(cap, lambda sqrt(w_p / c_p)), lambda spending the budget's cost before the cap: each count within
+    rounding of that, no pixel above the cap, the cost spent that of the ideal counts (to rounding) and so below the
+    budget (the capped pixels' excess kept),
+    and, away from the cap, no exchange of samples between two pixels at equal cost lowers sum(w_p / n_p) by more
+    than rounding allows. With equal costs: n_p proportional to sqrt(w_p) (Mehta et al.), exactly the samples
+    asked for when nothing is capped."""
     from sparselt.methods.axis_aligned import allocate_samples
 
     generator = np.random.default_rng(7)
@@ -779,22 +781,20 @@ def test_allocate_samples_solves_the_cost_constrained_problem():
     extra, cap = 20 * weight.size, 120
     counts = allocate_samples(weight, extra, cap, cost)
     budget = extra * cost.mean()
-    spent = np.sum(counts * cost)
-    assert abs(spent - budget) <= 1e-3 * budget
-    assert counts.max() == cap and counts.min() >= 0
-    uncapped = counts < cap
-    # Every count is its ideal rounded: min(cap, lambda sqrt(w / c)), lambda from the budget left to the uncapped.
     rate = np.sqrt(weight / cost)
-    multiplier = (budget - cap * cost[~uncapped].sum()) / np.sum((cost * rate)[uncapped])
-    assert np.all(np.abs(counts - np.minimum(cap, multiplier * rate)) < 1.0 + 1e-6)
-    assert np.all(multiplier * rate[~uncapped] >= cap - 1)
-    # Moving one sample's cost from the pixel that loses least to the one that gains most does not pay (pixels of
-    # at least 10 samples, where rounding moves a marginal gain by less than a fifth).
-    many = counts >= 10
+    ideal = np.minimum(cap, budget / np.sum(cost * rate) * rate)
+    assert np.all(np.abs(counts - ideal) < 1.0 + 1e-6) and counts.max() == cap and counts.min() >= 0
+    spent = np.sum(counts * cost)
+    assert abs(spent - np.sum(ideal * cost)) <= 1e-3 * budget and spent <= budget
+    assert np.any(budget / np.sum(cost * rate) * rate > cap)  # some pixels capped: their excess not spent
+    uncapped = counts < cap
+    # Moving one sample's cost from the pixel that loses least to the one that gains most does not pay (uncapped
+    # pixels of at least 10 samples, where rounding moves a marginal gain by less than a fifth).
+    many = (counts >= 10) & uncapped
     loss = weight / np.maximum(counts - 1, 1) - weight / np.maximum(counts, 1)  # error added by one sample fewer
     gain = weight / np.maximum(counts, 1) - weight / (counts + 1)  # removed by one more
     donor = np.argmin(np.where(many, loss / cost, np.inf))
-    taker = np.argmax(np.where(many & uncapped, gain / cost, -np.inf))
+    taker = np.argmax(np.where(many, gain / cost, -np.inf))
     assert gain.flat[taker] / cost.flat[taker] <= 1.5 * loss.flat[donor] / cost.flat[donor]
     equal = allocate_samples(weight, extra, 10 ** 6)
     assert equal.sum() == extra
