@@ -62,14 +62,14 @@ of the budget goes where it lowers the filtered image's expected relMSE most,
 ``n_p`` proportional to ``sqrt(v_p r_p)`` (:func:`allocate_samples`, ``v_p``
 the pilot's per-sample variance over ``(mean luminance)^2 + 0.01``, the
 relMSE's own weighting, smoothed over 5x5 pixels), each pixel at most
-``maximum_allocation`` times ``spp`` (a capped pixel's excess goes to the
-others). ``aaf-indirect`` filters only the diffuse-lobe part of a pixel, so
-its ``v_p r_p`` is the diffuse part's variance times ``r_p`` plus the rest's
+``maximum_allocation`` times ``spp`` (a capped pixel's excess is not handed
+on). ``aaf-indirect`` filters only the diffuse-lobe part of a pixel, so its
+``v_p r_p`` is the diffuse part's variance times ``r_p`` plus the rest's
 (:meth:`AafIndirect.filtered_variance`): a pixel whose noise is in its glossy
-samples gains nothing from the filter. Every sample is counted. The papers derive the counts from the
-bandlimits alone; ours add the measured variance, because in-focus pixels (no
-filtering at all) carry most of the error. The final widths come from all of
-a pixel's samples.
+samples gains nothing from the filter. Every sample is counted. The papers
+derive the counts from the bandlimits alone; ours add the measured variance,
+because in-focus pixels (no filtering at all) carry most of the error. The
+final widths come from all of a pixel's samples.
 
 **Samples cost what their paths cost** (``sample_cost='vertices'``, the
 default). Equal time, not equal samples, is the comparison, and the pixels an
@@ -89,9 +89,10 @@ in-focus gold, sunlit-room's fireflies) and hurt elsewhere (courtyard,
 glossy-interior, outdoor-texture, user-dof): a pixel whose few pilot samples
 all took the glossy lobe gets no width and draws many samples, and allocated
 samples fall on long, costly paths. With the cost and the glossy part in the
-model (ninth session) the allocation wins on six of the eight scenes at
-256x256 (``docs/experiments/README.md``); it still loses on outdoor-texture,
-whose error is the filter's, not the variance the model sees. So the pilot is
+model (ninth session) the allocation beats one uniform launch on six of the
+eight scenes measured (``docs/experiments/README.md``); it still loses on
+outdoor-texture, whose error is the filter's, not the variance the model
+sees, and on user-dof (160x96), where a second launch's fixed cost decides. So the pilot is
 drawn in two halves in its one launch, and the allocation is kept only where
 the one from each half lowers the other half's predicted error times cost at
 least ``allocation_gain`` times (1.2: the check, the second launch and the
@@ -523,11 +524,10 @@ class _AxisAligned(Method):
         scores = []
         for (weight, cost), (held_weight, held_cost) in (analysed, analysed[::-1]):
             allocated = allocate_samples(weight, extra_total, cap, cost) + pilot_spp
-            weight = held_weight
-            predicted = float(np.sum(weight / allocated))
+            predicted = float(np.sum(held_weight / allocated))
             if held_cost is not None:
                 predicted *= float(np.sum(held_cost * allocated)) / (spp * float(np.sum(held_cost)))
-            scores.append(float(np.sum(weight)) / spp / predicted if predicted > 0 else 1.0)
+            scores.append(float(np.sum(held_weight)) / spp / predicted if predicted > 0 else 1.0)
         return float(math.sqrt(scores[0] * scores[1]))
 
     def _draw_allocated(self, context, budget, first_index, extra, statistics, timer):

@@ -33,6 +33,8 @@ from .runtime import modules
 #: (``inf`` where it is not blocked); ``light_size``: ``sigma_l = sqrt(A) / 2`` of the sampled emitter's shape
 #: of area ``A`` (0 for lights without a shape). The last three are the soft-shadow analysis's inputs (Mehta et
 #: al. 2012, 3); the blocker's ray is traced only where ``occluder_distance`` is evaluated (Dr.Jit is lazy).
+#: ``path_vertices``: the vertices the path reached (the camera ray's hit and each bounce's hit; 0 for a camera
+#: ray that misses), the axis-aligned filters' cost model.
 AUXILIARY_QUANTITIES = ("primary_depth", "primary_normal", "diffuse_albedo", "secondary_distance",
                         "secondary_diffuse", "lens_u", "lens_v", "camera_emission", "direct_light", "light_distance",
                         "occluder_distance", "light_size", "path_vertices")
