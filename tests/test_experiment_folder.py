@@ -260,3 +260,30 @@ def test_owned_sub_folders_are_not_foreign_and_are_emptied_on_replace(tmp_path):
         _folder(out, {"scale": "thesis"}).inspect()
     _run(out, identity={"scale": "thesis"}, files=("index.html",), overwrite=True)
     assert _tree(out) == sorted([MANIFEST_FILE, "index.html"])
+
+
+
+@pytest.mark.parametrize("how", ["failure", "interrupt", "wrapped interrupt"])
+def test_a_failed_new_run_leaves_nothing_and_an_interrupted_one_is_kept(tmp_path, how):
+    """A new folder whose run fails before recording any cell is removed; a Ctrl-C keeps it (status running, a
+    rerun resumes), also when it arrives as the RuntimeError drjit.custom wraps around a KeyboardInterrupt raised
+    in a Mitsuba render's Python part (that path removed the folder while the command said its work was kept)."""
+    out = tmp_path / "run"
+    folder = _folder(out)
+    folder.inspect()
+    with pytest.raises(RuntimeError if how != "interrupt" else KeyboardInterrupt):
+        with folder.open():
+            folder.write_text("result.txt", "partial")
+            if how == "failure":
+                raise RuntimeError("a bug")
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as interrupt:
+                if how == "interrupt":
+                    raise
+                raise RuntimeError("drjit.custom: the callback raised") from interrupt
+    if how == "failure":
+        assert not out.exists()
+        return
+    manifest = json.loads((out / MANIFEST_FILE).read_text())
+    assert manifest["status"] == "running" and manifest["files"] == ["result.txt"]

@@ -11,6 +11,7 @@ from .experiments.compare import ComparisonConfig
 from .rendering.acquire import NONFINITE_POLICIES, AcquisitionConfig
 from .rendering.layout import KINDS
 from .rendering.setup import DEFAULT_VARIANT, SUPPORTED_VARIANTS
+from .storage.errors import caused_by_interrupt
 
 
 def _number_list(convert, example):
@@ -647,17 +648,6 @@ def _describe(error):
     return str(error)
 
 
-def _caused_by_interrupt(error):
-    """Whether a KeyboardInterrupt lies in the chain of causes of ``error`` (drjit.custom wraps one in a RuntimeError)."""
-    seen = set()
-    while error is not None and id(error) not in seen:
-        if isinstance(error, KeyboardInterrupt):
-            return True
-        seen.add(id(error))
-        error = error.__cause__ or error.__context__
-    return False
-
-
 def _plugins_named(argv):
     """The ``--plugin MODULE`` values of a command line, read before the parser is built (its help lists them)."""
     modules = []
@@ -692,7 +682,7 @@ def main(argv=None):
             # Python's pending KeyboardInterrupt fires here, on the first bytecode, before the error is reported.
             # A Ctrl-C that lands in mi.render's Python part instead is wrapped by drjit.custom into a RuntimeError
             # whose cause is the KeyboardInterrupt: that is an interruption too, not an error.
-            if _caused_by_interrupt(error):
+            if caused_by_interrupt(error):
                 raise KeyboardInterrupt from error
             message = _describe(error)
             print(f"sparselt {arguments.command}: error: {message}", file=sys.stderr)

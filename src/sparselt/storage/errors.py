@@ -186,3 +186,19 @@ class no_space_is_clear:
 
 __all__ = ["DiskFullError", "NO_SPACE_ERRORS", "OS_ERROR_HINTS", "blocking_file", "is_link_loop", "no_space_cause",
            "no_space_is_clear", "os_error_hint", "os_error_reason", "output_path_problem"]
+
+
+def caused_by_interrupt(error):
+    """Whether ``error`` is a Ctrl-C: a KeyboardInterrupt, or an error with one in its chain of causes.
+
+    ``drjit.custom`` wraps a KeyboardInterrupt raised in ``mi.render``'s Python part in a RuntimeError; a Ctrl-C
+    during a Mitsuba render cancels the render with a RuntimeError, and the KeyboardInterrupt then fires with that
+    error as its context. Both are interruptions, not failures.
+    """
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False

@@ -46,11 +46,12 @@ import contextlib
 import io
 import json
 import os
+import sys
 from datetime import datetime, timezone
 
 from ..digest import bytes_digest, canonical
 from ..provenance import atomic_write, atomic_write_bytes, environment_record, read_json
-from .errors import no_space_is_clear, output_path_problem
+from .errors import caused_by_interrupt, no_space_is_clear, output_path_problem
 from .lock import LOCK_FILE, LOCK_REMEDY, StoreLock, check_unlocked
 
 MANIFEST_FILE = "sparselt-folder.json"
@@ -334,14 +335,16 @@ class ExperimentFolder:
             self._write_manifest()
             self._lock = lock
             yield self
-        except Exception:
-            failed = True
+        except Exception as error:
+            failed = not caused_by_interrupt(error)
             raise
         finally:
             self._lock = None
             self._locking = False
             lock.release()
-            if failed and created:
+            # A Ctrl-C during a Mitsuba render arrives first as the render's RuntimeError, then as the
+            # KeyboardInterrupt now in flight: an interruption, whose folder a rerun resumes.
+            if failed and created and not caused_by_interrupt(sys.exc_info()[1]):
                 self._discard_unfinished(created)
 
     def _discard_unfinished(self, created):
