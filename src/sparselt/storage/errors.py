@@ -184,10 +184,6 @@ class no_space_is_clear:
             f"{_free_space(self.path)}); {self.remedy}", path=self.path) from None
 
 
-__all__ = ["DiskFullError", "NO_SPACE_ERRORS", "OS_ERROR_HINTS", "blocking_file", "is_link_loop", "no_space_cause",
-           "no_space_is_clear", "os_error_hint", "os_error_reason", "output_path_problem"]
-
-
 def caused_by_interrupt(error):
     """Whether ``error`` is a Ctrl-C: a KeyboardInterrupt, or an error with one in its chain of causes.
 
@@ -202,3 +198,9 @@ def caused_by_interrupt(error):
         seen.add(id(error))
         error = error.__cause__ or error.__context__
     return False
+
+
+__all__ = ["DiskFullError", "NO_SPACE_ERRORS", "OS_ERROR_HINTS", "blocking_file", "caused_by_interrupt",
+           "is_link_loop", "no_space_cause", "no_space_is_clear", "os_error_hint", "os_error_reason",
+           "output_path_problem"]
+
