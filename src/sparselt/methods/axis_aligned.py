@@ -92,13 +92,13 @@ samples fall on long, costly paths. With the cost and the glossy part in the
 model (ninth session) the allocation beats one uniform launch on six of the
 eight scenes measured (``docs/experiments/README.md``); it still loses on
 outdoor-texture, whose error is the filter's, not the variance the model
-sees, and on user-dof (160x96), where a second launch's fixed cost decides. So the pilot is
-drawn in two halves in its one launch, and the allocation is kept only where
-the one from each half lowers the other half's predicted error times cost at
-least ``allocation_gain`` times (1.2: the check, the second launch and the
-allocation's own passes cost 5-15% at 256x256), read on every other pixel of
-every other row (:data:`CHECK_STEP`)
-(:meth:`_AxisAligned.held_out_gain`); otherwise the rest is uniform. A budget
+sees, and on user-dof (160x96), where a second launch's fixed cost decides.
+So the pilot is drawn in two halves in its one launch, and the allocation is
+kept only where the one from each half lowers the other half's predicted
+error times cost at least ``allocation_gain`` times (1.2: the check, the
+second launch and the allocation's own passes cost 5-15% at 256x256), read
+on every other pixel of every other row (:meth:`_AxisAligned.held_out_gain`,
+:data:`CHECK_STEP`); otherwise the rest is uniform. A budget
 below ``single_launch_below`` samples is drawn in one uniform launch: a
 launch's fixed cost (tracing, code generation: 10-14 ms on 2 cores) is
 then a large share of the time. The bound is crude: below it the allocation
@@ -421,6 +421,7 @@ class _AxisAligned(Method):
         width, height = context.resolution
         pilot_spp, plan = self._pilot_plan(options, budget.spp, width * height, warming)
         statistics = PixelStatistics((height, width))
+        # A one-launch run reduces the pilot's statistics too, unused: the path kernel is then the warmed pilot's.
         names = ("rgb_squared",) + (("path_vertices",) if options.sample_cost == "vertices" else ()) + \
             self.pilot_statistics + self.statistics
         with timer("sampling"):

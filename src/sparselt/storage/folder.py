@@ -335,15 +335,16 @@ class ExperimentFolder:
             self._write_manifest()
             self._lock = lock
             yield self
-        except Exception as error:
-            failed = not caused_by_interrupt(error)
+        except Exception:
+            failed = True
             raise
         finally:
             self._lock = None
             self._locking = False
             lock.release()
-            # A Ctrl-C during a Mitsuba render arrives first as the render's RuntimeError, then as the
-            # KeyboardInterrupt now in flight: an interruption, whose folder a rerun resumes.
+            # The exception in flight decides: a Ctrl-C (a KeyboardInterrupt, drjit.custom's RuntimeError around
+            # one, or a Mitsuba render's cancellation followed by the KeyboardInterrupt) is an interruption, whose
+            # folder a rerun resumes.
             if failed and created and not caused_by_interrupt(sys.exc_info()[1]):
                 self._discard_unfinished(created)
 
