@@ -144,3 +144,50 @@ def test_ordered_sums_add_in_lane_order():
         for channel in range(3):
             expected[targets[lane], channel] += channels[channel][lane]
     assert np.array_equal(kernels.ordered_sums(targets, channels, 50), expected)
+
+
+def _replay_estimates_by_definition(sums, shifts, spp, emission):
+    """Kettunen et al. 2015, 3, pixel by pixel: a pixel's primal is the mean of every path that lands in it (its
+    base paths and each neighbour's offset towards it); the difference to the next pixel along an axis is the mean
+    of the pairs that span the two (offset minus base for a +1 shift from the left pixel, base minus offset for a -1
+    shift from the right one)."""
+    sums = sums.astype(np.float64) - emission
+    height, width, _, channels = sums.shape
+    primal = np.zeros((height, width, channels))
+    gradient_x = np.zeros((height, width - 1, channels))
+    gradient_y = np.zeros((height - 1, width, channels))
+    for y in range(height):
+        for x in range(width):
+            landing = [sums[y, x, 0]] + [sums[y - dy, x - dx, k] for k, (dx, dy) in enumerate(shifts, start=1)
+                                         if 0 <= y - dy < height and 0 <= x - dx < width]
+            primal[y, x] = np.sum(landing, axis=0) / (spp * len(landing))
+            for gradient, (step_x, step_y) in ((gradient_x, (1, 0)), (gradient_y, (0, 1))):
+                if x + step_x >= width or y + step_y >= height:
+                    continue
+                pairs = []
+                for k, (dx, dy) in enumerate(shifts, start=1):
+                    if (dx, dy) == (step_x, step_y):
+                        pairs.append(sums[y, x, k] - sums[y, x, 0])
+                    elif (dx, dy) == (-step_x, -step_y):
+                        pairs.append(sums[y + step_y, x + step_x, 0] - sums[y + step_y, x + step_x, k])
+                gradient[y, x] = np.sum(pairs, axis=0) / (spp * len(pairs))
+    return primal, gradient_x, gradient_y
+
+
+@pytest.mark.parametrize("offsets", [4, 2])
+@pytest.mark.parametrize("shape", [(6, 5), (1, 4), (3, 1)])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_replay_estimates_equal_their_definition(offsets, shape, dtype):
+    """The replay shift's primal and gradient images on every core equal the pixel-by-pixel definition (films of
+    one row or column included), with and without the emission subtracted."""
+    from sparselt.rendering.mitsuba.gradients import GRADIENT_SHIFTS
+
+    rng = np.random.default_rng(offsets + shape[0])
+    sums = rng.standard_normal(shape + (offsets + 1, 3)).astype(dtype)
+    emission = rng.standard_normal(sums.shape)
+    for subtracted in (None, emission):
+        expected = _replay_estimates_by_definition(sums, GRADIENT_SHIFTS[offsets], 7,
+                                                   0.0 if subtracted is None else subtracted)
+        for got, want in zip(kernels.replay_estimates(sums, GRADIENT_SHIFTS[offsets], 7, subtracted), expected):
+            assert got.shape == want.shape and got.dtype == np.float64
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)

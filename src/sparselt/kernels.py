@@ -258,7 +258,65 @@ def _compiled():
                         total += step * step + other * other
                     out[y, x] = weights[y, x] * total
 
-        _KERNELS = {"held_out_terms": held_out_terms, "admm_right_hand_side": admm_right_hand_side, "admm_update": admm_update,
+        @numba.njit(parallel=True, cache=True)
+        def replay_estimates(sums, emission, subtract, shift_x, shift_y, spp, primal, gradient_x, gradient_y):
+            height, width, paths, channels = sums.shape
+            count_x = 0
+            count_y = 0
+            for k in range(1, paths):
+                if shift_x[k - 1] != 0:
+                    count_x += 1
+                else:
+                    count_y += 1
+            for y in numba.prange(height):
+                for x in range(width):
+                    landed = 1.0
+                    for k in range(1, paths):
+                        if 0 <= x - shift_x[k - 1] < width and 0 <= y - shift_y[k - 1] < height:
+                            landed += 1.0
+                    for c in range(channels):
+                        value = float(sums[y, x, 0, c])
+                        if subtract:
+                            value -= emission[y, x, 0, c]
+                        # Each neighbour's offset that lands here, in shift order (NumPy's order of additions).
+                        for k in range(1, paths):
+                            source_x = x - shift_x[k - 1]
+                            source_y = y - shift_y[k - 1]
+                            if 0 <= source_x < width and 0 <= source_y < height:
+                                offset = float(sums[source_y, source_x, k, c])
+                                if subtract:
+                                    offset -= emission[source_y, source_x, k, c]
+                                value += offset
+                        primal[y, x, c] = value / (spp * landed)
+                        # The difference to the next pixel along x (then y): each pair that spans the two, in order.
+                        for axis in range(2):
+                            if (axis == 0 and x == width - 1) or (axis == 1 and y == height - 1):
+                                continue
+                            total = 0.0
+                            for k in range(1, paths):
+                                step_x = shift_x[k - 1]
+                                step_y = shift_y[k - 1]
+                                if (step_x != 0) != (axis == 0):
+                                    continue
+                                base_x = x + (1 if step_x < 0 else 0)
+                                base_y = y + (1 if step_y < 0 else 0)
+                                offset = float(sums[base_y, base_x, k, c])
+                                base = float(sums[base_y, base_x, 0, c])
+                                if subtract:
+                                    offset -= emission[base_y, base_x, k, c]
+                                    base -= emission[base_y, base_x, 0, c]
+                                if step_x + step_y > 0:
+                                    total += offset
+                                    total -= base
+                                else:
+                                    total -= offset
+                                    total += base
+                            if axis == 0:
+                                gradient_x[y, x, c] = total / (spp * count_x)
+                            else:
+                                gradient_y[y, x, c] = total / (spp * count_y)
+
+        _KERNELS = {"held_out_terms": held_out_terms, "replay_estimates": replay_estimates, "admm_right_hand_side": admm_right_hand_side, "admm_update": admm_update,
                     "admm_relaxed_update": admm_relaxed_update, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked,
                     "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
@@ -531,6 +589,49 @@ def held_out_terms(first, first_judge, second, second_judge, weights):
     return out.reshape(height, width, 1)
 
 
+def replay_estimates(sums, shifts, spp, emission=None):
+    """The primal and gradient images of the replay shift's per-path sums, on every core.
+
+    What :func:`sparselt.methods.gradient_domain.gradient_estimates`
+    computes without ``pairs`` (Kettunen et al. 2015, 3: every path that
+    lands in a pixel estimates it; each base/offset pair that spans two
+    pixels estimates their difference), in one pass instead of NumPy's
+    shifted slices and temporaries, with ``sums - emission`` formed where
+    read. The additions happen in NumPy's order (each path's sums in shift
+    order, float64), so the result is bit-identical to it.
+
+    Parameters
+    ----------
+    sums : ndarray, shape (height, width, 1 + offsets, 3), float32 or float64
+        Base paths at index 0, the offsets of ``shifts`` after.
+    shifts : sequence of (dx, dy)
+        Each offset's shift (unit steps along one axis).
+    spp : int
+        Base samples per pixel.
+    emission : ndarray, same shape, optional
+        Subtracted from ``sums`` (the emission seen directly, estimated apart).
+
+    Returns
+    -------
+    primal : ndarray (height, width, 3); gradient_x : (height, width - 1, 3); gradient_y : (height - 1, width, 3)
+        float64.
+    """
+    sums = np.ascontiguousarray(sums)
+    if sums.dtype not in (np.float32, np.float64):
+        sums = sums.astype(np.float64)
+    height, width, _, channels = sums.shape
+    subtract = emission is not None
+    emission = np.ascontiguousarray(emission, dtype=np.float64) if subtract else np.zeros((1, 1, 1, 1))
+    shift_x = np.array([dx for dx, _ in shifts], dtype=np.int64)
+    shift_y = np.array([dy for _, dy in shifts], dtype=np.int64)
+    primal = np.empty((height, width, channels))
+    gradient_x = np.empty((height, max(0, width - 1), channels))
+    gradient_y = np.empty((max(0, height - 1), width, channels))
+    _compiled()["replay_estimates"](sums, emission, subtract, shift_x, shift_y, int(spp), primal, gradient_x,
+                                    gradient_y)
+    return primal, gradient_x, gradient_y
+
+
 _WARM = False
 
 
@@ -565,6 +666,10 @@ def warm_up():
         admm_relaxed_update(np.zeros((3, 3, 1), dtype=real), np.zeros((3, 3, 1), dtype=real), parts,
                             [part.copy() for part in parts], [part.copy() for part in parts], 1.0, 1.0, 1.6)
     ordered_sums(np.zeros(4, dtype=np.uint32), [np.zeros(4, dtype=np.float32)] * 3, 4)
+    for sums in (np.float32, np.float64):  # the gradient methods' estimates, with and without emission apart
+        replay_estimates(np.zeros((2, 2, 5, 3), dtype=sums), ((1, 0), (-1, 0), (0, 1), (0, -1)), 1)
+        replay_estimates(np.zeros((2, 2, 5, 3), dtype=sums), ((1, 0), (-1, 0), (0, 1), (0, -1)), 1,
+                         np.zeros((2, 2, 5, 3)))
     for image in (np.float32, np.float64):  # the held-out scores: float32 images (the alpha family), float64 (L1)
         held_out_terms(np.zeros((2, 2, 1), dtype=image), np.zeros((2, 2, 1)), np.zeros((2, 2, 1), dtype=image),
                        np.zeros((2, 2, 1)), np.ones((2, 2)))

@@ -173,6 +173,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kernels import replay_estimates
 from ..recovery.poisson import (DEFAULT_ALPHA, HELD_OUT_ALPHAS, L1_CHECK_ITERATIONS, held_out_alpha, held_out_choice,
                                 held_out_l1_check, screened_poisson, screened_poisson_l1)
 from ..rendering.mitsuba.gradients import GRADIENT_SHIFTS, SHIFT_MAPS, gradient_paths
@@ -241,7 +242,7 @@ class GradientL1Options(GradientOptions):
                                    "the held-out check")
 
 
-def gradient_estimates(sums, spp, pairs=None, replayed=None):
+def gradient_estimates(sums, spp, pairs=None, replayed=None, emission=None):
     """The primal image and the two gradient images from the per-pixel sums of base and offset paths.
 
     Parameters
@@ -259,7 +260,11 @@ def gradient_estimates(sums, spp, pairs=None, replayed=None):
         below, and the tails as each pixel's mean over its neighbours of the
         pair's two-sided estimate and each gradient as the sum of the two
         sides' weighted differences (:mod:`sparselt.rendering.mitsuba.reconnection`);
-        ``sums`` is then not used.
+        ``sums`` is then not used. Without them
+        :func:`sparselt.kernels.replay_estimates` forms the estimates on every core.
+    emission : ndarray, optional
+        Without ``pairs``: subtracted from ``sums`` where they are read (the
+        emission seen directly, estimated apart), no difference array formed.
 
     Returns
     -------
@@ -273,38 +278,12 @@ def gradient_estimates(sums, spp, pairs=None, replayed=None):
         The same along ``y``.
     """
     sums = np.asarray(sums)
-    if sums.dtype not in (np.float32, np.float64):
-        sums = sums.astype(np.float64)
-    height, width, paths, _ = sums.shape
-    shifts = GRADIENT_SHIFTS[paths - 1]
+    shifts = GRADIENT_SHIFTS[sums.shape[2] - 1]
     if pairs is not None:
         replayed_estimates = gradient_estimates(replayed, spp)
         tail_estimates = _pair_estimates(np.asarray(pairs, dtype=np.float64), spp, shifts)
         return tuple(first + second for first, second in zip(replayed_estimates, tail_estimates))
-    # Accumulated in float64 from the sums' own precision (in place: no float64 copy of every path's sums).
-    base = sums[:, :, 0].astype(np.float64)
-    primal = base.copy()
-    landed = np.ones((height, width))
-    gradients = {"x": [np.zeros((height, width - 1, 3)), 0], "y": [np.zeros((height - 1, width, 3)), 0]}
-    for k, (dx, dy) in enumerate(shifts, start=1):
-        offset = sums[:, :, k]
-        source, target = _landing(height, width, dx, dy)
-        primal[target] += offset[source]
-        landed[target] += 1.0
-        axis = "x" if dx else "y"
-        # A +1 shift estimates I(base + 1) - I(base) at the base; a -1 shift, I(base) - I(base - 1) at base - 1.
-        gradient = gradients[axis][0]
-        if dx + dy > 0:
-            gradient += offset[source]
-            gradient -= base[source]
-        else:
-            gradient -= offset[source]
-            gradient += base[source]
-        gradients[axis][1] += 1
-    primal /= spp * landed[..., None]
-    gradient_x = gradients["x"][0] / (spp * gradients["x"][1])
-    gradient_y = gradients["y"][0] / (spp * gradients["y"][1])
-    return primal, gradient_x, gradient_y
+    return replay_estimates(sums, shifts, spp, emission)
 
 
 def _pair_estimates(pairs, spp, shifts):
@@ -387,15 +366,16 @@ def _score_key(key):
 PATH_SUMS = ("sums", "replayed", "pairs")
 
 
-def _merged(parts, *, paths=True):
+def _merged(parts, *, paths=True, unused=()):
     """One :class:`~sparselt.rendering.mitsuba.gradients.GradientSamples` of several draws: their sums added
-    (without ``paths``, :data:`PATH_SUMS` are left None: the caller estimates from the parts)."""
+    (without ``paths``, :data:`PATH_SUMS` are left None: the caller estimates from the parts; the fields named in
+    ``unused`` are left None too: at 1024x576 each sum is a 70 MB pass)."""
     if len(parts) == 1:
         return parts[0]
 
     def total(name):
         values = [getattr(part, name) for part in parts]
-        if values[0] is None or (not paths and name in PATH_SUMS):
+        if values[0] is None or (not paths and name in PATH_SUMS) or name in unused:
             return None
         return sum(values[1:], values[0])
 
@@ -406,6 +386,8 @@ def _estimates(samples, spp, separate, divisors):
     """The primal and gradient estimates of ``samples``: without the emission seen directly if ``separate``,
     demodulated by ``divisors`` (:func:`demodulation_divisors`' per-path divisors) if given."""
     sums, replayed, pairs = samples.sums, samples.replayed, samples.pairs
+    if separate and pairs is None and divisors is None:  # subtracted where the estimates read the sums
+        return gradient_estimates(sums, spp, emission=samples.camera_emission)
     if separate:
         sums = sums - samples.camera_emission
         replayed = None if replayed is None else replayed - samples.camera_emission
@@ -451,8 +433,9 @@ class _GradientDomain(Method):
         with timer("integration"):
             # With halves, the estimates of all the samples are the halves' weighted by their spp (the estimates
             # are linear in the sums), so the path sums are not added up.
-            samples = _merged(drawn, paths=not part_spps)
             demodulate = options.demodulation == "albedo"
+            samples = _merged(drawn, paths=not part_spps, unused=tuple(
+                name for name, needed in (("albedo", demodulate), ("camera_emission", separate)) if not needed))
             albedo, divisors = (demodulation_divisors(samples.albedo, budget.spp, options.albedo_floor)
                                 if demodulate else (None, None))
             if part_spps:

@@ -24,7 +24,9 @@ GRADIENT_SHIFTS = {4: ((1, 0), (-1, 0), (0, 1), (0, -1)), 2: ((1, 0), (0, 1))}  
 #: The shift maps: random replay of every number, or replay up to the first hit and reconnection to the base's
 #: second vertex where it is diffuse (:mod:`sparselt.rendering.mitsuba.reconnection`).
 SHIFT_MAPS = ("replay", "reconnection")
-GRADIENT_LANE_LIMIT = 1 << 23  # lanes (base and offset paths) per gradient-domain launch
+#: Lanes (base and offset paths) per replay launch. At most 10 values per lane come back (1.3 GB at the limit);
+#: every launch adds its tracing and readback: at 1024x576, 16 spp in 8 launches of 2 took 0.6 s more than in 2.
+GRADIENT_LANE_LIMIT = 1 << 25
 #: Lanes (base samples, each with its 4 offsets) per reconnection launch. Its kernel is large: tracing it costs
 #: about a second per launch (measured at 256x256: 16 spp in 16 launches took 3x as long as in one), so a launch
 #: takes as many samples as memory allows (about 57 floats per lane come back: 1.9 GB at the limit).
