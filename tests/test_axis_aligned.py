@@ -704,6 +704,9 @@ def test_explicit_lanes_must_be_sorted_by_pixel():
     with pytest.raises(ValueError, match="with explicit lanes"):
         scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([1]), np.array([0])),
                                       halves=True)
+    with pytest.raises(ValueError, match="first_sample applies to a uniform pass"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([1]), np.array([0])),
+                                      first_sample=4)
 
 
 def _half(context, noisy_columns, spp=2, vertices=1.0):

@@ -356,10 +356,18 @@ def test_gradient_methods_choose_alpha_from_their_own_halves(scene, layout):
     assert single.details["alpha"] == 0.2 and single.details["alpha_scores"] is None
 
 
-@pytest.mark.parametrize("shift, spp", [("replay", 5), ("reconnection", 5), ("reconnection", 4)])
-def test_halves_are_the_samples_split_by_index(scene, layout, shift, spp):
+@pytest.mark.parametrize("shift, spp, launch_spp", [("replay", 5, None), ("reconnection", 5, None),
+                                                     ("reconnection", 4, None), ("replay", 6, 4),
+                                                     ("reconnection", 6, 4), ("reconnection", 9, 2)])
+def test_halves_are_the_samples_split_by_index(scene, layout, shift, spp, launch_spp, monkeypatch):
     """The two halves (base samples below spp // 2, and the rest) add up to the whole draw of the same seed (an
-    even spp splits each pixel's block in the middle, an odd one by masks)."""
+    even spp in one launch splits each pixel's block in the middle; an odd one, or launches of ``launch_spp``
+    base samples that would straddle the half unevenly, end a launch at the half)."""
+    if launch_spp:
+        from sparselt.rendering.mitsuba import gradients
+
+        monkeypatch.setattr(gradients, "RECONNECTION_LANE_LIMIT", SIZE * SIZE * launch_spp)
+        monkeypatch.setattr(gradients, "GRADIENT_LANE_LIMIT", SIZE * SIZE * 5 * launch_spp)
     whole = scene.sample_gradients(layout, _grid(layout), spp, 4, shift=shift)
     first, second = scene.sample_gradients(layout, _grid(layout), spp, 4, shift=shift, halves=True)
     for name in ("sums", "albedo", "camera_emission", "replayed", "pairs"):
@@ -369,8 +377,8 @@ def test_halves_are_the_samples_split_by_index(scene, layout, shift, spp):
         np.testing.assert_allclose(getattr(first, name) + getattr(second, name), getattr(whole, name), rtol=1e-5,
                                    atol=1e-6)
     assert first.nonfinite + second.nonfinite == whole.nonfinite
-    two = scene.sample_gradients(layout, _grid(layout), 2, 4, shift=shift)  # the first half: samples 0 and 1
-    np.testing.assert_allclose(first.sums, two.sums, rtol=1e-5, atol=1e-6)
+    leading = scene.sample_gradients(layout, _grid(layout), spp // 2, 4, shift=shift)  # samples 0 .. spp // 2 - 1
+    np.testing.assert_allclose(first.sums, leading.sums, rtol=1e-5, atol=1e-6)
     with pytest.raises(ValueError, match="spp must be >= 2 to be halved"):
         scene.sample_gradients(layout, _grid(layout), 1, 4, shift=shift, halves=True)
 

@@ -223,8 +223,11 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
     reductions = [{name: np.zeros((pixels, 1 + len(shifts), 3)) for name in names} for _ in range(part_count)]
     pairs = [np.zeros((pixels, len(shifts), 2, 3)) for _ in range(part_count)]
     nonfinite = [0] * part_count
-    for first in range(0, spp, per_launch):
+    first = 0
+    while first < spp:
         count = min(per_launch, spp - first)
+        if half is not None and first < half < first + count and 2 * (half - first) != count:
+            count = half - first  # a launch holds one part, or both halves of it split in the middle
         index = dr.arange(mi.UInt32, pixels * count)
         samples_per_pixel = dr.opaque(mi.UInt32, count)
         pixel = index // samples_per_pixel
@@ -275,7 +278,7 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
             dr.eval(reduced)
             nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag))) for flag in bad)
             accumulate(part, reduced)
-        elif 2 * (half - first) == count:  # split in the middle: two blocks per pixel, no masks
+        else:  # both halves, split in the middle: two blocks per pixel, no masks
             reduced = [dr.block_sum(channel, count // 2) for channel in scalars]
             dr.eval(reduced)
             lane_half = (sample_index >= dr.opaque(mi.UInt32, half))
@@ -283,14 +286,7 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
                 in_part = lane_half if part else ~lane_half
                 nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag & in_part))) for flag in bad)
                 accumulate(part, [np.asarray(channel, dtype=np.float64)[part::2] for channel in reduced])
-        else:  # uneven: each part masked
-            for part in (0, 1):
-                in_part = (sample_index >= dr.opaque(mi.UInt32, half)) if part else (
-                    sample_index < dr.opaque(mi.UInt32, half))
-                reduced = [dr.block_sum(dr.select(in_part, channel, 0.0), count) for channel in scalars]
-                dr.eval(reduced)
-                nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag & in_part))) for flag in bad)
-                accumulate(part, reduced)
+        first += count
     shape = (height, width, 1 + len(shifts), 3)
     return tuple(GradientSamples(reduction["sums"].reshape(shape), reduction["camera_emission"].reshape(shape),
                                  reduction["albedo"].reshape(shape), bad_paths, reduction["replayed"].reshape(shape),

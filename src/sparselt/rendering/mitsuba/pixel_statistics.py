@@ -147,7 +147,8 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     ------
     ValueError
         An unknown name, neither or both of ``spp`` and ``lanes``, lanes
-        not sorted by pixel, or ``halves`` with lanes or an odd ``spp``.
+        not sorted by pixel, ``halves`` with lanes or an odd ``spp``, or a
+        ``first_sample`` with lanes.
     """
     unknown = sorted(set(names) - set(PIXEL_STATISTICS))
     if unknown:
@@ -157,6 +158,9 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     if halves and (lanes is not None or int(spp) % 2):
         raise ValueError(f"halves needs a uniform pass of an even spp, not spp={spp} "
                          f"{'with explicit lanes' if lanes is not None else ''}".rstrip())
+    if lanes is not None and first_sample:
+        raise ValueError(f"first_sample applies to a uniform pass, got first_sample={first_sample} with explicit "
+                         f"lanes (their sample indices are given)")
     pixels = scene.width * scene.height
     if lanes is not None:
         slots = explicit_slots(lanes[0], EXPLICIT_BLOCK)
