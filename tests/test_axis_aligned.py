@@ -827,6 +827,22 @@ def test_each_sampling_plan_spends_the_budget_as_it_says(soft_shadow_dof_context
         assert 0 < result.details["allocation_held_out_gain"] < 1000
 
 
+def test_allocated_samples_split_over_several_launches_give_the_same_bytes(soft_shadow_dof_context, monkeypatch):
+    """The allocated lanes go in launches of whole pixels (at most ``STATISTICS_LIMIT`` lanes each): a limit that
+    splits them over many launches draws the same samples into the same per-pixel reductions, so the image is
+    the same bytes."""
+    from sparselt.methods import axis_aligned
+
+    row = "aaf-dof:single_launch_below=0:allocation_gain=0:pilot_fraction=0.2"
+    whole = _run(row, soft_shadow_dof_context, 16, 3)
+    width, height = soft_shadow_dof_context.resolution
+    monkeypatch.setattr(axis_aligned, "STATISTICS_LIMIT", width * height)  # about 13 launches of whole pixels
+    split = _run(row, soft_shadow_dof_context, 16, 3)
+    assert whole.details["allocation"] == split.details["allocation"] == "allocated"
+    assert split.path_samples == whole.path_samples > 13 * width * height
+    np.testing.assert_array_equal(split.image, whole.image)
+
+
 # --------------------------------------------------------------------------- factored soft-shadow filtering (issue 37)
 
 

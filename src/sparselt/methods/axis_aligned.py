@@ -136,7 +136,9 @@ from .registry import register
 
 
 
-STATISTICS_LIMIT = 1 << 22  # lanes per allocated launch
+#: Lanes per allocated launch. Each lane's statistics are evaluated once and once more in their padded slots (about
+#: 20 floats: 1.3 GB at the limit); every launch adds its tracing (10-15 ms) and its readback.
+STATISTICS_LIMIT = 1 << 24
 #: A sample's cost beyond its path vertices, in path vertices (the lane's set-up and camera ray), for
 #: :meth:`PixelStatistics.sample_cost`. Measured: the allocated lanes of five of the suite's scenes cost 0.53-1.47
 #: times the same number of uniform lanes; cost ``0.5 + vertices`` predicts 0.47-1.37 (docs/experiments/README.md,
