@@ -136,9 +136,10 @@ from .registry import register
 
 
 
-#: Lanes per allocated launch. Each lane's statistics are evaluated once and once more in their padded slots (about
-#: 20 floats: 1.3 GB at the limit); every launch adds its tracing (10-15 ms) and its readback.
-STATISTICS_LIMIT = 1 << 24
+#: Lanes per allocated launch. Larger launches are slower, not faster: at 1024x576 and 64 spp, 2^24 instead of 2^22
+#: took the allocated pass from 6.0 to 7.2 s on checker-dof and 16.4 to 18.5 s on courtyard (issue 37, tenth
+#: session: each lane's statistics are evaluated and then copied into padded slots, twice the memory traffic).
+STATISTICS_LIMIT = 1 << 22
 #: A sample's cost beyond its path vertices, in path vertices (the lane's set-up and camera ray), for
 #: :meth:`PixelStatistics.sample_cost`. Measured: the allocated lanes of five of the suite's scenes cost 0.53-1.47
 #: times the same number of uniform lanes; cost ``0.5 + vertices`` predicts 0.47-1.37 (docs/experiments/README.md,
