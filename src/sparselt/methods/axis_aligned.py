@@ -137,8 +137,8 @@ from .registry import register
 
 
 #: Lanes per allocated launch. Larger launches are slower, not faster: at 1024x576 and 64 spp, 2^24 instead of 2^22
-#: took the allocated pass from 6.0 to 7.2 s on checker-dof and 16.4 to 18.5 s on courtyard (issue 37, tenth
-#: session: each lane's statistics are evaluated and then copied into padded slots, twice the memory traffic).
+#: made the sampling phase 6.0 -> 7.2 s on checker-dof and 16.4 -> 18.5 s on courtyard (issue 37, tenth session, one
+#: run of 2 seeds each; not isolated: each lane's statistics are evaluated, then copied into padded slots).
 STATISTICS_LIMIT = 1 << 22
 #: A sample's cost beyond its path vertices, in path vertices (the lane's set-up and camera ray), for
 #: :meth:`PixelStatistics.sample_cost`. Measured: the allocated lanes of five of the suite's scenes cost 0.53-1.47
