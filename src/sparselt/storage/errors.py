@@ -203,4 +203,3 @@ def caused_by_interrupt(error):
 __all__ = ["DiskFullError", "NO_SPACE_ERRORS", "OS_ERROR_HINTS", "blocking_file", "caused_by_interrupt",
            "is_link_loop", "no_space_cause", "no_space_is_clear", "os_error_hint", "os_error_reason",
            "output_path_problem"]
-
