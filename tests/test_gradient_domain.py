@@ -533,6 +533,30 @@ def test_held_out_l1_check_takes_l1_for_outlying_gradients_and_l2_for_gaussian_o
         held_out_l1_check(halves, float("inf"))
 
 
+def test_held_out_images_are_the_halves_l2_images_and_weighted_give_all_the_samples():
+    """held_out_alpha's images are each half's L2 image at every candidate (bit for bit the family's); their
+    spp-weighted mean is the L2 image of the merged estimates (the solve is linear) to float32 rounding; the L1
+    check given them decides and scores exactly as when it computes them itself."""
+    from sparselt.recovery.poisson import held_out_alpha, held_out_l1_check, screened_poisson, screened_poisson_family
+
+    image, generator = _smooth_image(40, seed=5)
+    halves = _halves_with(image, generator, lambda rng, shape: 0.3 * rng.standard_normal(shape))
+    alpha, scores, images = held_out_alpha(halves, return_images=True)
+    assert (alpha, scores) == held_out_alpha(halves) and set(images) == set(scores)
+    for candidate, pair in images.items():
+        for half, half_image in zip(halves, pair):
+            np.testing.assert_array_equal(half_image, screened_poisson_family(*half, (candidate,), precision="single")[0])
+    spps = (3, 5)
+    merged = [(spps[0] * first + spps[1] * second) / sum(spps) for first, second in zip(*halves)]
+    for candidate in (0.1, 0.8):
+        weighted = (spps[0] * images[candidate][0].astype(np.float64) + spps[1] * images[candidate][1]) / sum(spps)
+        whole = screened_poisson(*merged, alpha=candidate).estimate
+        assert np.max(np.abs(weighted - whole)) < 1e-5 * np.max(np.abs(whole))
+    assert held_out_l1_check(halves, 0.4, l2_images=images[0.4]) == held_out_l1_check(halves, 0.4)
+    with pytest.raises(ValueError, match="l2_images must be the two halves' images"):
+        held_out_l1_check(halves, 0.4, l2_images=images[0.4][:1])
+
+
 def test_gradient_l1_is_its_l1_or_l2_image_as_the_check_says(scene, layout):
     """gradient-l1 records the check; its image is bit for bit gradient-l2's where the check keeps L2 and the
     unchecked L1 image where it takes L1; 'always' skips the check; every path counted as before."""

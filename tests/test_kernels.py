@@ -191,3 +191,35 @@ def test_replay_estimates_equal_their_definition(offsets, shape, dtype):
         for got, want in zip(kernels.replay_estimates(sums, GRADIENT_SHIFTS[offsets], 7, subtracted), expected):
             assert got.shape == want.shape and got.dtype == np.float64
             np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("shape", [(5, 7, 3), (64, 48, 1)])
+def test_screened_spectrum_equals_numpy_in_place_arithmetic(shape):
+    """The screened Poisson spectrum kernel rounds as NumPy's multiply, add and divide on float32 arrays."""
+    generator = np.random.default_rng(4)
+    primal, gradient = (generator.standard_normal(shape).astype(np.float32) for _ in range(2))
+    eigenvalues = generator.uniform(0, 8, shape[:2] + (1,)).astype(np.float32)
+    for alpha in (0.05, 0.2, 3.2):
+        weight = np.float32(alpha * alpha)
+        expected = np.multiply(primal, weight)
+        expected += gradient
+        expected /= weight + eigenvalues
+        out = kernels.screened_spectrum(primal, gradient, eigenvalues, alpha * alpha, np.empty_like(primal))
+        np.testing.assert_array_equal(out, expected)
+
+
+@pytest.mark.parametrize("runs", [7, 9000])  # the NumPy path and the parallel one
+def test_run_ramps_equal_repeat_and_arange(runs):
+    """Runs of repeated pixels and of numbered samples or slots, as the NumPy expressions they replace."""
+    generator = np.random.default_rng(8)
+    counts = generator.integers(0, 30, runs)
+    bases = np.sort(generator.choice(10 * runs, runs, replace=False))
+    starts = np.cumsum(counts) - counts
+    for step in (0, 1):
+        expected = (np.repeat(bases, counts) + step * (np.arange(counts.sum()) - np.repeat(starts, counts)))
+        for dtype in (np.uint32, np.int64):
+            out = kernels.run_ramps(counts, bases, step, dtype)
+            assert out.dtype == dtype
+            np.testing.assert_array_equal(out, expected.astype(dtype))
+    with pytest.raises(ValueError, match="must not be negative"):
+        kernels.run_ramps(np.array([2, -1]), np.array([0, 1]), 1, np.uint32)

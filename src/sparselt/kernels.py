@@ -140,6 +140,13 @@ def _compiled():
                         kept += 1
                 filled[block] = kept
 
+        @numba.njit(parallel=True, cache=True)
+        def run_ramps(starts, counts, bases, step, out):
+            for run in numba.prange(starts.size):
+                start, base = starts[run], bases[run]
+                for position in range(counts[run]):
+                    out[start + position] = base + step * position
+
         @numba.njit(cache=True)
         def ordered_sums(targets, first, second, third, out):
             for lane in range(targets.size):
@@ -247,6 +254,15 @@ def _compiled():
             return change, norm
 
         @numba.njit(parallel=True, cache=True)
+        def screened_spectrum(primal_spectrum, gradient_spectrum, eigenvalues, weight, out):
+            height, width, channels = out.shape
+            for y in numba.prange(height):
+                for x in range(width):
+                    denominator = weight + eigenvalues[y, x, 0]
+                    for c in range(channels):
+                        out[y, x, c] = (primal_spectrum[y, x, c] * weight + gradient_spectrum[y, x, c]) / denominator
+
+        @numba.njit(parallel=True, cache=True)
         def held_out_terms(first, first_judge, second, second_judge, weights, out):
             height, width, channels = first.shape
             for y in numba.prange(height):
@@ -316,7 +332,7 @@ def _compiled():
                             else:
                                 gradient_y[y, x, c] = total / (spp * count_y)
 
-        _KERNELS = {"held_out_terms": held_out_terms, "replay_estimates": replay_estimates, "admm_right_hand_side": admm_right_hand_side, "admm_update": admm_update,
+        _KERNELS = {"held_out_terms": held_out_terms, "screened_spectrum": screened_spectrum, "run_ramps": run_ramps, "replay_estimates": replay_estimates, "admm_right_hand_side": admm_right_hand_side, "admm_update": admm_update,
                     "admm_relaxed_update": admm_relaxed_update, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked,
                     "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
@@ -458,6 +474,31 @@ def pixel_block_cell_sums(cells, weights, spp, resolution, grid_shape):
             np.insert(counts, insert, numbers[~present]))
 
 
+def run_ramps(counts, bases, step, dtype):
+    """Runs laid end to end: run ``k`` is ``counts[k]`` values ``bases[k], bases[k] + step, ...``; on every core.
+
+    ``np.repeat(bases, counts) + step * (np.arange(n) - np.repeat(starts, counts))``
+    (``starts`` each run's first position, ``n`` the total) without its
+    lane-size temporaries: ``step`` 0 repeats each base (a lane's pixel),
+    1 numbers a run's lanes from its base (sample indices, slots). Integer
+    ``dtype`` (the values must fit it). Returns the new array.
+    """
+    counts = np.ascontiguousarray(counts, dtype=np.int64)
+    bases = np.ascontiguousarray(bases, dtype=np.int64)
+    if counts.shape != bases.shape or counts.ndim != 1:
+        raise ValueError(f"counts and bases must be one-dimensional and of one length, got {counts.shape} and "
+                         f"{bases.shape}")
+    if counts.size and counts.min() < 0:
+        raise ValueError("run counts must not be negative")
+    starts = np.cumsum(counts) - counts
+    out = np.empty(int(counts.sum()), dtype=dtype)
+    if out.size < PARALLEL_MINIMUM:
+        out[:] = np.repeat(bases, counts) + step * (np.arange(out.size) - np.repeat(starts, counts))
+    else:
+        _compiled()["run_ramps"](starts, counts, bases, int(step), out)
+    return out
+
+
 def ordered_sums(targets, channels, bins):
     """Per-bin sums of three channels, each added in lane order: a splat whose result does not depend on threads.
 
@@ -564,6 +605,20 @@ def admm_relaxed_update(image, previous, targets, z, u, alpha, threshold, relaxa
                                               float(threshold), float(relaxation))
 
 
+def screened_spectrum(primal_spectrum, gradient_spectrum, eigenvalues, weight, out):
+    """``out = (primal_spectrum * weight + gradient_spectrum) / (weight + eigenvalues)``: one pass, on every core.
+
+    The spectrum of the screened Poisson solution at ``weight = alpha^2``
+    (:func:`~sparselt.recovery.poisson.screened_poisson_family`): the two
+    spectra and ``out`` are float32 ``(height, width, channels)``, the
+    eigenvalues float32 ``(height, width, 1)``; the same float32 operations
+    in the same order as NumPy's ``np.multiply``, ``+=`` and ``/=`` on those
+    arrays, so bit-identical to them. Returns ``out``.
+    """
+    _compiled()["screened_spectrum"](primal_spectrum, gradient_spectrum, eigenvalues, np.float32(weight), out)
+    return out
+
+
 def held_out_terms(first, first_judge, second, second_judge, weights):
     """A held-out score's per-pixel terms ``w * sum over channels of ((A - J_A)^2 + (B - J_B)^2)``, on every core.
 
@@ -665,11 +720,16 @@ def warm_up():
                              np.empty((3, 3, 1), dtype=real))
         admm_relaxed_update(np.zeros((3, 3, 1), dtype=real), np.zeros((3, 3, 1), dtype=real), parts,
                             [part.copy() for part in parts], [part.copy() for part in parts], 1.0, 1.0, 1.6)
+    for dtype in (np.uint32, np.int64):  # the allocated lanes' pixels and sample indices, their slots
+        kernels["run_ramps"](np.zeros(1, dtype=np.int64), np.ones(1, dtype=np.int64), np.zeros(1, dtype=np.int64), 1,
+                             np.empty(1, dtype=dtype))
     ordered_sums(np.zeros(4, dtype=np.uint32), [np.zeros(4, dtype=np.float32)] * 3, 4)
     for sums in (np.float32, np.float64):  # the gradient methods' estimates, with and without emission apart
         replay_estimates(np.zeros((2, 2, 5, 3), dtype=sums), ((1, 0), (-1, 0), (0, 1), (0, -1)), 1)
         replay_estimates(np.zeros((2, 2, 5, 3), dtype=sums), ((1, 0), (-1, 0), (0, 1), (0, -1)), 1,
                          np.zeros((2, 2, 5, 3)))
+    screened_spectrum(*(np.zeros((2, 2, 3), dtype=np.float32) for _ in range(2)), np.ones((2, 2, 1), dtype=np.float32),
+                      1.0, np.empty((2, 2, 3), dtype=np.float32))
     for image in (np.float32, np.float64):  # the held-out scores: float32 images (the alpha family), float64 (L1)
         held_out_terms(np.zeros((2, 2, 1), dtype=image), np.zeros((2, 2, 1)), np.zeros((2, 2, 1), dtype=image),
                        np.zeros((2, 2, 1)), np.ones((2, 2)))

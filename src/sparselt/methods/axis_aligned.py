@@ -125,6 +125,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
 from ..cell_statistics import variance_from_sums
 from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, dof_filter_width,
                                     gaussian_taps, indirect_filter_width, shadow_filter_width)
@@ -544,10 +545,9 @@ class _AxisAligned(Method):
         for group in groups:
             with timer("other"):
                 counts = extra[group]
-                pixel_ids = np.repeat(group.astype(np.uint32), counts)
+                pixel_ids = kernels.run_ramps(counts, group, 0, np.uint32)
                 # Sample indices first_index, first_index + 1, ... within each pixel.
-                sample_ids = np.arange(pixel_ids.size, dtype=np.uint32) - np.repeat(
-                    (np.cumsum(counts) - counts - first_index).astype(np.uint32), counts)
+                sample_ids = kernels.run_ramps(counts, np.full(counts.size, first_index), 1, np.uint32)
             with timer("sampling"):
                 reduced, bad = context.scene.sample_pixel_statistics(
                     context.layout, context.grid_shape, budget.seed, self.statistics, lanes=(pixel_ids, sample_ids))

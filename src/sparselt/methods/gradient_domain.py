@@ -176,6 +176,7 @@ import numpy as np
 from ..kernels import replay_estimates
 from ..recovery.poisson import (DEFAULT_ALPHA, HELD_OUT_ALPHAS, L1_CHECK_ITERATIONS, held_out_alpha, held_out_choice,
                                 held_out_l1_check, screened_poisson, screened_poisson_l1)
+from ..recovery.result import RecoveryResult
 from ..rendering.mitsuba.gradients import GRADIENT_SHIFTS, SHIFT_MAPS, gradient_paths
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .options import MethodOptions, option
@@ -447,11 +448,19 @@ class _GradientDomain(Method):
                 halves = None
                 primal, gradient_x, gradient_y = _estimates(samples, budget.spp, separate, divisors)
         with timer("reconstruction"):
+            l2_images = None
             if halves:
-                alpha, scores = held_out_alpha(halves)
+                alpha, scores, half_images = held_out_alpha(halves, return_images=True)
+                if np.isfinite(alpha):
+                    # The L2 solution is linear in the estimates, and the estimates of all the samples are the
+                    # halves' weighted by their spp: so is the L2 image of all the samples (no third solve).
+                    first, second = half_images[alpha]
+                    l2_images = ((part_spps[0] * first.astype(np.float64) + part_spps[1] * second) / budget.spp,
+                                 (first, second))
             solver_details = {}
             if np.isfinite(alpha):
-                result, solver_details = self.reconstruct(options, alpha, primal, gradient_x, gradient_y, halves)
+                result, solver_details = self.reconstruct(options, alpha, primal, gradient_x, gradient_y, halves,
+                                                          l2_images)
                 estimate, iterations, stop_reason = result.estimate, result.iterations, result.stop_reason
             else:  # the gradients judged useless: the primal image (every path of the pixel, PT's estimator)
                 estimate, iterations, stop_reason = primal, 0, "primal"
@@ -500,10 +509,20 @@ class _GradientDomain(Method):
                                               offsets=self.options.offsets, shift=shift, halves=halves,
                                               albedo=self.options.demodulation == "albedo")
 
-    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves):  # pragma: no cover - interface
+    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves,
+                    l2_images):  # pragma: no cover - interface
         """The image from the estimates of all the samples at ``alpha`` (finite); ``halves`` the estimates of the
-        two held-out halves, or None. Returns ``(RecoveryResult, details)``, ``details`` added to the run's."""
+        two held-out halves, or None; ``l2_images`` the L2 images at ``alpha`` of all the samples and of each half,
+        ``(image, (image_a, image_b))``, where the held-out choice computed them (float32 solves), or None.
+        Returns ``(RecoveryResult, details)``, ``details`` added to the run's."""
         raise NotImplementedError
+
+
+def _l2_result(l2_images, primal, gradient_x, gradient_y, alpha):
+    """The L2 reconstruction of all the samples: the held-out choice's if given, else one solve."""
+    if l2_images is None:
+        return screened_poisson(primal, gradient_x, gradient_y, alpha=alpha)
+    return RecoveryResult(estimate=l2_images[0], iterations=0, stop_reason="exact", seconds={"solve": 0.0})
 
 
 @register
@@ -515,8 +534,8 @@ class GradientL2(_GradientDomain):
     description = ("gradient-domain path tracing: base paths and their one-pixel shifts in primary sample space, "
                    "screened Poisson L2 solve by one DCT (unbiased)")
 
-    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves):
-        return screened_poisson(primal, gradient_x, gradient_y, alpha=alpha), {}
+    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves, l2_images):
+        return _l2_result(l2_images, primal, gradient_x, gradient_y, alpha), {}
 
 
 @register
@@ -528,16 +547,18 @@ class GradientL1(_GradientDomain):
     description = ("gradient-domain path tracing with the L1 reconstruction (ADMM over the DCT solve; biased, "
                    "robust to outlying gradients)")
 
-    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves):
-        """The L1 solve, or with ``l1_check='held-out'`` (and halves) the L2 one unless the L1 image of each half
-        predicts the other half's primal image better beyond noise (:func:`held_out_l1_check`)."""
+    def reconstruct(self, options, alpha, primal, gradient_x, gradient_y, halves, l2_images):
+        """The L1 solve (from the L2 image), or with ``l1_check='held-out'`` (and halves) the L2 one unless the L1
+        image of each half predicts the other half's primal image better beyond noise (:func:`held_out_l1_check`)."""
         if options.l1_check == "held-out" and halves:
             use_l1, check = held_out_l1_check(halves, alpha, iterations=options.check_iterations,
-                                              tolerance=options.tolerance)
+                                              tolerance=options.tolerance,
+                                              l2_images=None if l2_images is None else l2_images[1])
             details = {"l1_check": check, "solver_used": "l1" if use_l1 else "l2"}
         else:
             use_l1, details = True, {"l1_check": None, "solver_used": "l1"}
         if not use_l1:
-            return screened_poisson(primal, gradient_x, gradient_y, alpha=alpha), details
+            return _l2_result(l2_images, primal, gradient_x, gradient_y, alpha), details
         return screened_poisson_l1(primal, gradient_x, gradient_y, alpha=alpha, tolerance=options.tolerance,
-                                   max_iterations=options.max_iterations), details
+                                   max_iterations=options.max_iterations,
+                                   start="l2" if l2_images is None else l2_images[0]), details

@@ -190,10 +190,8 @@ def _single_precision_family(primal, adjoint, eigenvalues, alphas):
         if not np.isfinite(alpha):
             images.append(primal.astype(np.float32))
             continue
-        weight = np.float32(alpha * alpha)
-        spectrum = np.multiply(primal_spectrum, weight)
-        spectrum += gradient_spectrum
-        spectrum /= weight + flat_eigenvalues
+        spectrum = kernels.screened_spectrum(primal_spectrum, gradient_spectrum, flat_eigenvalues, alpha * alpha,
+                                             np.empty_like(primal_spectrum))
         images.append(_float32_dct(spectrum, 3, out=spectrum).reshape(shape))
     return images
 
@@ -203,7 +201,7 @@ def _single_precision_family(primal, adjoint, eigenvalues, alphas):
 HELD_OUT_ALPHAS = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6, 3.2, float("inf"))
 
 
-def held_out_alpha(halves, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2):
+def held_out_alpha(halves, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2, return_images=False):
     """The alpha whose L2 reconstruction from one half of the samples best predicts the other half's primal image.
 
     Parameters
@@ -216,6 +214,8 @@ def held_out_alpha(halves, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2):
         relMSE's epsilon (0.01): the score's weights are
         ``1 / (mean over channels of m^2 + epsilon)``, ``m`` the mean of the
         two halves' reconstructions at Kettunen et al.'s alpha (0.2).
+    return_images : bool
+        Also return the halves' L2 images the scores were computed from.
 
     Returns
     -------
@@ -223,6 +223,12 @@ def held_out_alpha(halves, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2):
         The candidate of least score.
     scores : dict
         ``{alpha: score}``, the score of each candidate.
+    images : dict
+        Only with ``return_images``: ``{alpha: (image_a, image_b)}``, each
+        half's L2 image (float32, :func:`screened_poisson_family`'s single
+        precision) at every candidate and at 0.2. The L2 solution is linear
+        in the estimates, so the spp-weighted mean of a pair is the L2 image
+        of all the samples at that alpha.
 
     Notes
     -----
@@ -245,11 +251,14 @@ def held_out_alpha(halves, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2):
     predictions. J. R. Stat. Soc. B 36(2). Kettunen, M. et al. (2015).
     Gradient-domain path tracing. ACM TOG 34(4) (alpha = 0.2).
     """
-    (_, alpha), scores = held_out_choice({None: halves}, alphas=alphas, epsilon=epsilon)
-    return alpha, {alpha: score for (_, alpha), score in scores.items()}
+    (_, alpha), scores, images = held_out_choice({None: halves}, alphas=alphas, epsilon=epsilon, return_images=True)
+    scores = {alpha: score for (_, alpha), score in scores.items()}
+    if return_images:
+        return alpha, scores, {alpha: pair for (_, alpha), pair in images.items()}
+    return alpha, scores
 
 
-def held_out_choice(estimators, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2, significance=2.0):
+def held_out_choice(estimators, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2, significance=2.0, return_images=False):
     """The estimator and alpha whose L2 reconstruction from one half best predicts the other halves' primal images.
 
     Parameters
@@ -267,6 +276,8 @@ def held_out_choice(estimators, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2, signifi
         errors of the difference (estimated from the per-pixel score terms'
         sums over 8x8-pixel blocks). 0: the least score, however small the
         difference.
+    return_images : bool
+        Also return the halves' L2 images (as :func:`held_out_alpha`).
 
     Returns
     -------
@@ -276,6 +287,9 @@ def held_out_choice(estimators, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2, signifi
         significantly better (ties: the first label).
     scores : dict
         ``{(label, alpha): score}``.
+    images : dict
+        Only with ``return_images``: ``{(label, alpha): (image_a, image_b)}``
+        for every candidate alpha (and 0.2).
 
     Notes
     -----
@@ -336,6 +350,9 @@ def held_out_choice(estimators, *, alphas=HELD_OUT_ALPHAS, epsilon=1e-2, signifi
                 pixel_terms(*challenger) - pixel_terms(*best)):
             continue
         best = challenger
+    if return_images:
+        return best, scores, {(label, alpha): (reconstructions[label][0][index], reconstructions[label][1][index])
+                              for label in labels for index, alpha in enumerate(candidates)}
     return best, scores
 
 
@@ -353,7 +370,7 @@ L1_CHECK_ITERATIONS = 6
 
 
 def held_out_l1_check(halves, alpha, *, iterations=L1_CHECK_ITERATIONS, epsilon=1e-2, significance=2.0,
-                      **l1_options):
+                      l2_images=None, **l1_options):
     """Whether the L1 reconstruction at ``alpha`` predicts the held-out halves better than the L2 one, beyond noise.
 
     Parameters
@@ -374,6 +391,10 @@ def held_out_l1_check(halves, alpha, *, iterations=L1_CHECK_ITERATIONS, epsilon=
         ``significance`` standard errors of the difference (from the
         per-pixel terms' sums over 8x8-pixel blocks); otherwise the L2 one,
         which costs one DCT solve instead of tens.
+    l2_images : pair of ndarray, optional
+        Each half's L2 image at ``alpha`` if computed already (``images[alpha]``
+        of :func:`held_out_alpha` with ``return_images``); by default computed
+        here, the same way (:func:`screened_poisson_family`, single precision).
     **l1_options
         Passed on to :func:`screened_poisson_l1` (tolerance, penalty, ...).
 
@@ -415,8 +436,11 @@ def held_out_l1_check(halves, alpha, *, iterations=L1_CHECK_ITERATIONS, epsilon=
     if int(iterations) < 1:
         raise ValueError(f"iterations must be at least 1, got {iterations!r}")
     (primal_a, *gradients_a), (primal_b, *gradients_b) = halves
-    l2_images = (screened_poisson_family(primal_a, *gradients_a, (alpha,), precision="single")[0],
-                 screened_poisson_family(primal_b, *gradients_b, (alpha,), precision="single")[0])
+    if l2_images is None:
+        l2_images = (screened_poisson_family(primal_a, *gradients_a, (alpha,), precision="single")[0],
+                     screened_poisson_family(primal_b, *gradients_b, (alpha,), precision="single")[0])
+    elif len(l2_images) != 2 or any(np.shape(image) != np.shape(primal_a) for image in l2_images):
+        raise ValueError(f"l2_images must be the two halves' images of shape {np.shape(primal_a)}")
     l1_images = tuple(screened_poisson_l1(primal, *gradients, alpha=alpha, max_iterations=iterations, start=l2,
                                           **l1_options).estimate
                       for (primal, *gradients), l2 in zip(halves, l2_images))

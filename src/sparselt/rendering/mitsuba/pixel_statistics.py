@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import kernels
 from .integrand import path_contribution, zero_nonfinite
 from .launch import launch
 from .pixels import pixel_lanes
@@ -262,5 +263,5 @@ def explicit_slots(pixel_ids, block):
     counts = np.diff(np.append(starts, pixel_ids.size))
     blocks = -(-counts // block)
     first_blocks = np.cumsum(blocks) - blocks
-    slot = np.arange(pixel_ids.size, dtype=np.int64) + np.repeat(first_blocks * block - starts, counts)
-    return ExplicitSlots(slot.astype(np.uint32), int(block), int(blocks.sum()), pixel_ids[starts], first_blocks)
+    slot = kernels.run_ramps(counts, first_blocks * block, 1, np.uint32)
+    return ExplicitSlots(slot, int(block), int(blocks.sum()), pixel_ids[starts], first_blocks)
