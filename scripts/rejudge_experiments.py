@@ -8,8 +8,13 @@ verdict changed is printed as a Markdown table (old, new, why), which
 ``docs/experiments/README.md`` carries. Nothing renders: folders without
 per-pixel images keep their untrimmed relMSE as the headline metric.
 
-Usage: ``.venv/bin/python scripts/rejudge_experiments.py [--check]`` (``--check`` writes nothing and exits 1 if a
-folder would change).
+A suite whose scenes are re-judged gets its ``suite.csv``, ``aggregate.csv``/``.md`` and ``speedups.png`` again
+(:func:`sparselt.experiments.suite_report.write_suite_tables`, the bootstrap's recorded seed); pages (``index.html``)
+stay as measured.
+
+Usage: ``.venv/bin/python scripts/rejudge_experiments.py [--check] [--folders a,b]`` (``--check`` writes nothing and
+exits 1 if a folder would change; ``--folders`` re-judges only those folders of ``docs/experiments`` and what they
+hold).
 """
 
 from __future__ import annotations
@@ -31,7 +36,8 @@ EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
 
 
 def rejudge(folder):
-    """``(files {name: text}, compare.json record, old summary, new summary)`` of one comparison folder."""
+    """``(files {name: text}, compare.json record, old summary, new summary, rows, fit)`` of one comparison
+    folder."""
     record = json.loads((folder / "compare.json").read_text())
     rows = [{key: value for key, value in row.items() if key not in DERIVED_ROW_COLUMNS}
             for row in read_records_csv(folder / "results.csv")]
@@ -41,7 +47,7 @@ def rejudge(folder):
     files = {"results.csv": results_csv(rows, COLUMN_ORDER), "summary.csv": summary_csv(summary),
              "equal_time.md": table.markdown(), "equal_time.csv": table.csv()}
     old = read_records_csv(folder / "summary.csv")
-    return files, record, old, summary
+    return files, record, old, summary, rows, fit
 
 
 def _speedup(record):
@@ -67,15 +73,54 @@ def changes(folder, old, new):
     return lines
 
 
+class _SuiteFolder:
+    """What :func:`~sparselt.experiments.suite_report.write_suite_tables` writes through, on a published folder."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def write_text(self, name, text):
+        (self.path / name).write_text(text)
+
+    def write_figure(self, name, figure):
+        from sparselt.image_io import figure_bytes
+
+        (self.path / name).write_bytes(figure_bytes(figure))
+
+
+def rewrite_suite(folder, judged):
+    """A published suite's tables from its re-judged scenes (``judged``: ``{name: (rows, fit, summary)}``)."""
+    from sparselt.experiments.suite_report import machine_text, write_suite_tables
+
+    record = json.loads((folder / "suite.json").read_text())
+    names = [scene["name"] for scene in record["config"]["scenes"]]
+    for name in names:  # scenes not re-judged on disk: judged here, in memory, for the aggregate
+        if name not in judged:
+            *_, summary, rows, fit = rejudge(folder / "scenes" / name)
+            judged[name] = (rows, fit, summary)
+    write_suite_tables(_SuiteFolder(folder), [(name, *judged[name]) for name in names],
+                       {scene["name"]: scene["kind"] for scene in record["config"]["scenes"]},
+                       {name: machine_text(record["scenes"][name]["machine"]) for name in names},
+                       sorted(record["config"]["spps"]), resamples=record["bootstrap"]["resamples"],
+                       seed=record["bootstrap"]["seed"])
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a folder would change")
+    parser.add_argument("--folders", help="only these folders of docs/experiments (comma separated)")
     arguments = parser.parse_args(argv)
+    roots = ([EXPERIMENTS / name for name in arguments.folders.split(",")] if arguments.folders else [EXPERIMENTS])
+    for root in roots:
+        if not root.is_dir():
+            print(f"no folder {root}", file=sys.stderr)
+            return 2
     table = ["| folder | method | spp | before (speed-up) | now (speed-up) |", "|---|---|---|---|---|"]
     stale = []
-    for summary_path in sorted(EXPERIMENTS.rglob("summary.csv")):
+    suites = {}
+    for summary_path in sorted(path for root in roots for path in root.rglob("summary.csv")):
         folder = summary_path.parent
-        files, record, old, new = rejudge(folder)
+        files, record, old, new, rows, fit = rejudge(folder)
         table += changes(folder, old, new)
         for name, text in files.items():
             if not (folder / name).exists() or (folder / name).read_text() != text:
@@ -84,6 +129,11 @@ def main(argv=None):
                     (folder / name).write_text(text)
         if not arguments.check:
             write_json(folder / "compare.json", record)
+        if (folder.parent.parent / "suite.json").is_file() and folder.parent.name == "scenes":
+            suites.setdefault(folder.parent.parent, {})[folder.name] = (rows, fit, new)
+    if not arguments.check:
+        for suite, judged in suites.items():
+            rewrite_suite(suite, judged)
     print("\n".join(table))
     if arguments.check and stale:
         print(f"{len(stale)} files would change: {', '.join(stale)}", file=sys.stderr)

@@ -12,8 +12,10 @@ import pytest
 from sparselt.experiments.equal_time import (
     add_equal_time_columns,
     fit_baseline,
+    fit_record,
     fit_relmse,
     fit_time,
+    headline_metric,
     mean_interval,
     ratio_interval,
     summarize,
@@ -140,6 +142,72 @@ def test_equal_quality_speedup_from_the_fit():
     assert record["speedup_equal_quality"] == pytest.approx(pt_seconds / 0.2, rel=1e-6)
     assert record["speedup_ci_low"] < record["speedup_equal_quality"] < record["speedup_ci_high"]
     assert all(row["verdict"] == record["verdict"] for row in rows if row["method"] == "fast")
+
+
+def curved_pt_rows(exponent, spps=(8, 16, 32, 64, 128, 256, 512, 1024), noise=0.0, seed=3):
+    """PT rows whose trimmed relMSE falls as c / spp^exponent + floor (times on t = a + b spp), the untrimmed
+    relMSE as 1 / spp, both with relative noise."""
+    generator = np.random.default_rng(seed)
+    rows = pt_rows(spps=spps)
+    for row, c in zip(rows, [0.4, 0.5, 0.45] * len(spps)):
+        row["relmse_trimmed"] = (c / row["spp"] ** exponent + 0.0005) * (1 + noise * generator.standard_normal())
+        row["relmse"] *= 1 + noise * generator.standard_normal()
+    return rows
+
+
+def test_a_trimmed_metric_slower_than_one_over_spp_gets_its_exponent_and_reads_pt_at_its_curve():
+    """A ladder on c / spp^0.6 + floor: 1 / spp leaves a large residual, the exponent is recovered (with 2% noise
+    within 0.05), PT's value halfway up the ladder is the curve's, and the untrimmed relMSE keeps 1 / spp."""
+    exact = fit_baseline(curved_pt_rows(0.6), "pt")
+    assert exact.exponent("relmse_trimmed") == pytest.approx(0.6) and exact.exponent("relmse") == 1.0
+    assert exact.residuals["relmse_trimmed"] < 1e-6
+    seconds = 0.05 + 0.01 * 100
+    assert exact.value_at("relmse_trimmed", seconds, 2) == pytest.approx(0.5 / 100 ** 0.6 + 0.0005, rel=1e-6)
+    noisy = fit_baseline(curved_pt_rows(0.6, noise=0.02), "pt")
+    assert abs(noisy.exponent("relmse_trimmed") - 0.6) <= 0.05
+    assert noisy.exponent("relmse") == 1.0  # never fitted for the untrimmed metric
+    ladder = np.array([8, 16, 32, 64, 128, 256, 512, 1024.0])
+    c, floor = fit_relmse(ladder, 0.5 / ladder ** 0.6 + 0.0005)  # the 1 / spp line on the same ladder
+    assert abs((c / 100 + floor) / (0.5 / 100 ** 0.6 + 0.0005) - 1) > 0.2  # what it read there was off by > 20%
+    record = fit_record(exact)
+    assert record["relmse_trimmed_exponent"] == pytest.approx(0.6) and "relmse_exponent" not in record
+
+
+def test_a_ladder_on_one_over_spp_keeps_exponent_one_and_the_same_fits():
+    """Monte Carlo's rate, with noise: exponent 1, and the fits are exactly fit_relmse's per seed."""
+    rows = curved_pt_rows(1.0, noise=0.05)
+    fit = fit_baseline(rows, "pt")
+    assert fit.exponents == {} and fit.exponent("relmse_trimmed") == 1.0
+    for seed in SEEDS:
+        ladder = sorted((row["spp"], row["relmse_trimmed"]) for row in rows if row["seed"] == seed)
+        assert fit.fits["relmse_trimmed"][seed] == fit_relmse([spp for spp, _ in ladder], [v for _, v in ladder])
+    assert "relmse_trimmed_exponent" not in fit_record(fit)
+
+
+def test_no_exponent_for_short_ladders_or_a_trimmed_error_that_rises():
+    """Fewer than four rungs: the line. A trimmed error that rises with spp (sunlit-room's fireflies) fits no
+    power in range: the line, whose residual then hands the headline to the untrimmed relMSE."""
+    assert fit_baseline(curved_pt_rows(0.6, spps=(8, 16, 32)), "pt").exponents == {}
+    rows = curved_pt_rows(1.0)
+    for row in rows:
+        row["relmse_trimmed"] = 0.001 * row["spp"] ** 0.5
+    fit = fit_baseline(rows, "pt")
+    assert fit.exponents == {} and headline_metric(rows, fit) == "relmse"
+
+
+def test_equal_quality_speedup_follows_the_curved_fit():
+    """With PT's trimmed relMSE on c / spp^0.6 + floor: a method at PT's own value has speed-up 1 at PT's time,
+    and one reaching PT's 512-spp value at 256 spp's time has speed-up PT's 512-spp time over its own."""
+    rows = curved_pt_rows(0.6)
+    target = [c / 512 ** 0.6 + 0.0005 for c in (0.4, 0.5, 0.45)]
+    seconds = 0.05 + 0.01 * 256
+    rows += [{"method": "fast", "spp": 8, "seed": seed, "seconds_total": seconds, "relmse": 0.5 / 512,
+              "relmse_trimmed": value, "ssim": 0.9} for seed, value in zip(SEEDS, target)]
+    fit = add_equal_time_columns(rows, baseline="pt")
+    summary = summarize(rows, fit, baseline="pt")
+    record = next(record for record in summary if record["method"] == "fast")
+    assert record["headline_metric"] == "relmse_trimmed" and record["headline_exponent"] == pytest.approx(0.6)
+    assert record["speedup_equal_quality"] == pytest.approx((0.05 + 0.01 * 512) / seconds, rel=1e-3)
 
 
 def test_a_time_beyond_the_ladder_has_no_pt_value_and_says_so():

@@ -98,17 +98,20 @@ class SceneCell:
         seconds = self.seconds * (1.0 + self.timing) ** (generator.standard_normal(shape) / NORMAL_QUANTILE)
         fit = self.fit
         c, fitted_floor = fit.mean_fit(self.metric)
+        exponent = fit.exponent(self.metric)
         lowest, highest = fit.spp_range
 
         def own(at):  # PT's debiased value at time ``at`` (its spp clamped to the ladder), seeds' mean fit
             spp = np.clip((at - fit.intercept) / fit.slope, lowest, highest)
-            return c / spp + fitted_floor - self.floor
+            return c / (spp if exponent == 1.0 else spp ** exponent) + fitted_floor - self.floor
 
         here, moved = own(self.seconds), own(seconds)
         ratio = np.where((moved > 0) & (here > 0), ratio * here / np.where(moved > 0, moved, 1.0), ratio)
         # The speed-up of each ratio, as equal_quality_speedup maps it (bounded by PT's ladder at both ends).
         target = self.floor + ratio * moved - fitted_floor
         spp = np.where(target > 0, c / np.where(target > 0, target, 1.0), np.inf)
+        if exponent != 1.0:
+            spp = spp ** (1.0 / exponent)
         spp = np.clip(spp, lowest, highest)
         speedup = (fit.intercept + fit.slope * spp) / seconds
         return np.log(ratio), np.log(speedup)

@@ -207,24 +207,39 @@ def scene_sentences(name, summary):
     return sentences
 
 
+def write_suite_tables(folder, scenes, kinds, machines, spps, **aggregate_options):
+    """A suite's tables from its judged scenes: ``suite.csv``, ``aggregate.csv``/``.md`` and ``speedups.png``.
+
+    ``scenes``: ``(name, rows, fit, summary)`` per scene, in the suite's
+    order; ``kinds`` and ``machines``: text per scene name; ``folder``: anything
+    with ``write_text(name, text)`` and ``write_figure(name, figure)``. The
+    suite's run and ``scripts/rejudge_experiments.py`` (a published suite
+    re-judged) both write them so. Returns ``(aggregate records, suite.csv's
+    rows, the aggregate's Table)``.
+    """
+    suite_rows = [dict(record, scene=name, kind=kinds[name], machine=machines[name])
+                  for name, _, _, summary in scenes for record in summary]
+    folder.write_text("suite.csv", csv_text(suite_rows, SUITE_COLUMNS))
+    aggregated = aggregate(scenes, **aggregate_options)
+    folder.write_text("aggregate.csv", csv_text(aggregated, AGGREGATE_COLUMNS))
+    table = aggregate_table(aggregated)
+    folder.write_text("aggregate.md", table.markdown())
+    folder.write_figure("speedups.png", speedup_figure(scenes, aggregated, spps))
+    return aggregated, suite_rows, table
+
+
 def write_suite_outputs(folder, config, records, *, seconds):
     """Every report file of a finished suite (see :mod:`sparselt.experiments.suite`); returns a :class:`SuiteResult`."""
     from ..results import judged_comparison
     from .suite import SCENES, SUITE_FILE
 
-    scenes, suite_rows = [], []
+    scenes = []
     for scene in config.scenes:
         rows, fit, summary, attributes = judged_comparison(folder.path_of(f"{SCENES}/{scene.name}"))
         scenes.append((scene.name, rows, fit, summary))
-        machine = machine_text(records[scene.name]["machine"])
-        for record in summary:
-            suite_rows.append(dict(record, scene=scene.name, kind=scene.kind, machine=machine))
-    folder.write_text("suite.csv", csv_text(suite_rows, SUITE_COLUMNS))
-    aggregated = aggregate(scenes)
-    folder.write_text("aggregate.csv", csv_text(aggregated, AGGREGATE_COLUMNS))
-    table = aggregate_table(aggregated)
-    folder.write_text("aggregate.md", table.markdown())
-    folder.write_figure("speedups.png", speedup_figure(scenes, aggregated, sorted(config.spps)))
+    aggregated, suite_rows, table = write_suite_tables(folder, scenes, {scene.name: scene.kind for scene in config.scenes},
+                               {name: machine_text(records[name]["machine"]) for name, *_ in scenes},
+                               sorted(config.spps))
 
     sections = [Section(title="Across the suite", tables=[table], introduction=(
         f"Suite {config.name}: {len(config.scenes)} scenes, methods {', '.join(config.methods)}, "

@@ -221,12 +221,16 @@ def equal_time_table(summary, *, methods, epsilon=DEFAULT_EPSILON):
                + ["FLIP ratio, verdict", "SSIM ratio [95%]", "speed-up at equal quality [95%]", "outlier share",
                   "biased pixels (PT's)"])
     fallback = headline == "relmse" and any(record.get("relmse_trimmed") not in ("", None) for record in records)
+    exponent = next((record["headline_exponent"] for record in records if record.get("headline_exponent")), None)
     return Table(
         caption="Equal-time quality against path tracing",
         columns=columns, kinds=[""] * 2 + ["ours"] * (len(columns) - 2), rows=table_rows, label_header="method",
         notes=(["The untrimmed relMSE decides here: PT's trimmed relMSE does not fall as c/spp + floor over its "
                 "ladder (relative residual above 50%), as where trimming discards the few pixels that found a rare "
-                "light."] if fallback else []) + [f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). The "
+                "light."] if fallback else [])
+        + ([f"PT's {METRIC_NAMES[headline]} falls more slowly than 1/spp over its ladder (c/spp + floor left a "
+            f"relative residual above 20%, as where a few pixels per image find a rare bright path): its fits are "
+            f"c/spp^k + floor with k = {exponent:g} for every seed."] if exponent else []) + [f"Times: median of each cell's repeated runs (every second counted, kernels warmed first). The "
                f"verdict and the speed-up use {METRIC_NAMES[headline]}; relMSE's epsilon = {epsilon}. PT's value "
                f"at a time comes from its fits (time = a + b spp; relMSE = c/spp + floor per seed) over its automatic "
                f"spp ladder. Ratios: the method's mean over seeds over PT's mean at the same times, both less the "

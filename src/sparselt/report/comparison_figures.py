@@ -88,8 +88,10 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
         c = np.mean([value["c"] for value in seeds.values()])
         if c is not None:
             floor = np.mean([value["floor"] for value in seeds.values()])
-            right.plot(fit["intercept_seconds"] + fit["seconds_per_spp"] * spps, c / spps + floor, "k--", lw=1,
-                       label=f"PT fit: {c:.3g}/spp + {floor:.2g}")
+            exponent = fit.get(f"{metric}_exponent", 1.0)
+            power = "spp" if exponent == 1.0 else f"spp^{exponent:g}"
+            right.plot(fit["intercept_seconds"] + fit["seconds_per_spp"] * spps, c / spps ** exponent + floor, "k--",
+                       lw=1, label=f"PT fit: {c:.3g}/{power} + {floor:.2g}")
     left.set(xscale="log", xlabel="seconds (median of repeats, kernels warm)", ylabel="SSIM",
              title=f"{scene}: SSIM vs time")
     right.set(xscale="log", yscale="log", xlabel="seconds (median of repeats, kernels warm)",
