@@ -275,7 +275,7 @@ class BaselineFit:
         if not self.covers(seconds) or seed not in fits:
             return math.nan
         c, floor = fits[seed]
-        return c / _power(self.spp_at(seconds), self.exponent(metric)) + floor
+        return c / spp_power(self.spp_at(seconds), self.exponent(metric)) + floor
 
     def relmse_at(self, seconds, seed):
         """PT's relMSE at ``seconds`` for ``seed``; ``nan`` beyond the ladder."""
@@ -307,7 +307,7 @@ class BaselineFit:
         c, floor = self.mean_fit(metric)
         if not value > floor:
             return math.inf
-        return _root(c / (value - floor), self.exponent(metric))
+        return power_root(c / (value - floor), self.exponent(metric))
 
     def seconds_for_relmse(self, relmse, metric="relmse"):
         """PT's time to reach ``relmse`` with the seeds' mean fit, unclamped (the model, not a verdict); ``inf``
@@ -331,13 +331,14 @@ def fit_relmse(spps, relmses, exponent=1.0):
     return max(c, 0.0), 0.0
 
 
-def _power(spp, exponent):
-    """``spp ** exponent``, ``spp`` itself at 1 (the same bytes as before exponents were fitted)."""
+def spp_power(spp, exponent):
+    """``spp ** exponent`` (a number or an array), ``spp`` itself at 1 (the same bytes as before exponents were
+    fitted): the denominator of PT's fitted ``c / spp^k + floor``."""
     return spp if exponent == 1.0 else spp ** exponent
 
 
-def _root(value, exponent):
-    """``value ** (1 / exponent)``, ``value`` itself at 1."""
+def power_root(value, exponent):
+    """``value ** (1 / exponent)``, ``value`` itself at 1: the spp at which ``spp^k`` is ``value``."""
     return value if exponent == 1.0 else value ** (1.0 / exponent)
 
 
@@ -640,9 +641,9 @@ def equal_quality_speedup(fit, metric, ratio, seconds, floor):
     """
     c, fitted_floor = fit.mean_fit(metric)
     exponent = fit.exponent(metric)
-    own = c / _power(fit.spp_at(seconds), exponent) + fitted_floor - floor
+    own = c / spp_power(fit.spp_at(seconds), exponent) + fitted_floor - floor
     target = floor + ratio * own - fitted_floor
-    spp = _root(c / target, exponent) if target > 0 else math.inf
+    spp = power_root(c / target, exponent) if target > 0 else math.inf
     lowest, highest = fit.spp_range
     if spp > highest:
         return fit.seconds_at(highest) / seconds, ">"
@@ -843,6 +844,6 @@ def add_bias_fractions(summary, record, rows=()):
 __all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "FIT_RESIDUAL_LIMIT", "HEADLINE_METRIC", "NOISY_TIMING_RATIO",
            "OUTLIER_DOMINATED_SHARE", "REFERENCE_LIMITED_SHARE", "RELMSE_METRICS", "ROW_SUMMARY_COLUMNS",
            "SUMMARY_COLUMNS", "VERDICTS", "DERIVED_ROW_COLUMNS", "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record",
-           "equal_quality_speedup", "fit_baseline", "fit_exponent", "fit_record", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
+           "equal_quality_speedup", "fit_baseline", "fit_exponent", "fit_record", "power_root", "spp_power", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
            "mean_interval", "ratio_interval", "row_floor", "summarize",
            "timing_uncertainty", "verdict"]

@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from .equal_time import row_floor
+from .equal_time import power_root, row_floor, spp_power
 
 #: Bootstrap resamples of an aggregate's interval, and the generator's seed (recorded in ``suite.json``).
 RESAMPLES = 2000
@@ -103,16 +103,14 @@ class SceneCell:
 
         def own(at):  # PT's debiased value at time ``at`` (its spp clamped to the ladder), seeds' mean fit
             spp = np.clip((at - fit.intercept) / fit.slope, lowest, highest)
-            return c / (spp if exponent == 1.0 else spp ** exponent) + fitted_floor - self.floor
+            return c / spp_power(spp, exponent) + fitted_floor - self.floor
 
         here, moved = own(self.seconds), own(seconds)
         ratio = np.where((moved > 0) & (here > 0), ratio * here / np.where(moved > 0, moved, 1.0), ratio)
         # The speed-up of each ratio, as equal_quality_speedup maps it (bounded by PT's ladder at both ends).
         target = self.floor + ratio * moved - fitted_floor
-        spp = np.where(target > 0, c / np.where(target > 0, target, 1.0), np.inf)
-        if exponent != 1.0:
-            spp = spp ** (1.0 / exponent)
-        spp = np.clip(spp, lowest, highest)
+        spp = np.clip(power_root(np.where(target > 0, c / np.where(target > 0, target, 1.0), np.inf), exponent),
+                      lowest, highest)
         speedup = (fit.intercept + fit.slope * spp) / seconds
         return np.log(ratio), np.log(speedup)
 

@@ -237,9 +237,9 @@ def write_suite_outputs(folder, config, records, *, seconds):
     for scene in config.scenes:
         rows, fit, summary, attributes = judged_comparison(folder.path_of(f"{SCENES}/{scene.name}"))
         scenes.append((scene.name, rows, fit, summary))
-    aggregated, suite_rows, table = write_suite_tables(folder, scenes, {scene.name: scene.kind for scene in config.scenes},
-                               {name: machine_text(records[name]["machine"]) for name, *_ in scenes},
-                               sorted(config.spps))
+    aggregated, suite_rows, table = write_suite_tables(
+        folder, scenes, {scene.name: scene.kind for scene in config.scenes},
+        {name: machine_text(records[name]["machine"]) for name, *_ in scenes}, sorted(config.spps))
 
     sections = [Section(title="Across the suite", tables=[table], introduction=(
         f"Suite {config.name}: {len(config.scenes)} scenes, methods {', '.join(config.methods)}, "
