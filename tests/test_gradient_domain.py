@@ -357,8 +357,9 @@ def test_gradient_methods_choose_alpha_from_their_own_halves(scene, layout):
 
 
 @pytest.mark.parametrize("shift, spp, launch_spp", [("replay", 5, None), ("reconnection", 5, None),
-                                                     ("reconnection", 4, None), ("replay", 6, 4),
-                                                     ("reconnection", 6, 4), ("reconnection", 9, 2)])
+                                                     ("replay", 4, None), ("reconnection", 4, None),
+                                                     ("replay", 6, 4), ("reconnection", 6, 4), ("replay", 9, 2),
+                                                     ("reconnection", 9, 2)])
 def test_halves_are_the_samples_split_by_index(scene, layout, shift, spp, launch_spp, monkeypatch):
     """The two halves (base samples below spp // 2, and the rest) add up to the whole draw of the same seed (an
     even spp in one launch splits each pixel's block in the middle; an odd one, or launches of ``launch_spp``
@@ -573,3 +574,25 @@ def test_gradient_l1_is_its_l1_or_l2_image_as_the_check_says(scene, layout):
     same_as = always if checked.details["solver_used"] == "l1" else l2
     np.testing.assert_array_equal(checked.image, same_as.image)
     assert checked.path_samples == always.path_samples == l2.path_samples
+
+
+@pytest.mark.parametrize("spp", range(1, 40))
+@pytest.mark.parametrize("per_launch", (1, 2, 3, 5, 8, 16, 100))
+def test_launch_chunks_cover_the_samples_once_and_never_straddle_the_half_unevenly(spp, per_launch):
+    """Chunks tile 0 .. spp - 1 in order, none above the lane limit; with a half, a chunk is one part, or both
+    halves split evenly in the middle, and both halves of an even budget that fits one launch are one launch."""
+    from sparselt.rendering.mitsuba.gradients import launch_chunks
+
+    for half in (None, spp // 2) if spp >= 2 else (None,):
+        chunks = list(launch_chunks(spp, per_launch, half))
+        assert [first for first, _, _ in chunks] == list(np.cumsum([0] + [count for _, count, _ in chunks])[:-1])
+        assert sum(count for _, count, _ in chunks) == spp and all(1 <= count <= per_launch for _, count, _ in chunks)
+        for first, count, part in chunks:
+            if half is None:
+                assert part == 0
+            elif part is None:
+                assert 2 * (half - first) == count
+            else:
+                assert part == (first >= half) and (first + count <= half or first >= half)
+        if half is not None and spp % 2 == 0 and spp <= per_launch:
+            assert chunks == [(0, spp, None)]

@@ -16,7 +16,7 @@ import numpy as np
 from .integrand import finite_lanes, path_contribution, zero_nonfinite
 from .lanes import pss_vector, seeded_generator
 from .launch import launch
-from .readback import count_false, stacked
+from .readback import stacked
 from .reconnection import shifted_pair, split_path
 from .runtime import modules
 
@@ -82,6 +82,31 @@ def gradient_paths(width, height, offsets):
     return width * height + sum((width - abs(dx)) * (height - abs(dy)) for dx, dy in GRADIENT_SHIFTS[offsets])
 
 
+def launch_chunks(spp, per_launch, half=None):
+    """The launches of ``spp`` base samples per pixel, at most ``per_launch`` each: ``(first, count, part)``.
+
+    Without ``half``, ``part`` is 0. With ``half`` (the first half's samples
+    are ``0 .. half - 1``), a launch holds samples of one part (``part`` 0 or
+    1), or both halves evenly, split in the middle (``part`` None:
+    ``first + count / 2 == half``), so that both halves of a small budget are
+    one launch (each launch adds its tracing and readback) while a launch
+    that would straddle the half unevenly ends at it.
+    """
+    first = 0
+    while first < spp:
+        count = min(per_launch, spp - first)
+        if half is not None and first < half < first + count and 2 * (half - first) != count:
+            count = half - first
+        if half is None or first + count <= half:
+            part = 0
+        elif first >= half:
+            part = 1
+        else:
+            part = None
+        yield first, count, part
+        first += count
+
+
 def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="replay", halves=False, albedo=True):
     """Gradient-domain path samples: every base sample replayed at the neighbouring pixels, in one kernel.
 
@@ -93,8 +118,11 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
     primary sample space: a translation, Jacobian 1; Kettunen et al. 2015,
     3 and 5.1 use the 4 neighbours). An offset landing outside the film is
     not traced (counted 0). The base and offset paths of a pass are one
-    Dr.Jit launch (lane ``((pixel * (1 + offsets)) + shift) * n + sample``),
-    reduced per pixel and shift inside it: nothing per sample leaves it.
+    Dr.Jit launch (lane ``((part * pixels + pixel) * (1 + offsets) + shift)
+    * n + sample``), reduced per pixel and shift inside it: nothing per
+    sample leaves it. Both halves of an even budget that fits one launch
+    (:data:`GRADIENT_LANE_LIMIT`) are that launch (:func:`launch_chunks`;
+    a launch's tracing and readback cost about 0.04 s at 256x256).
 
     Parameters
     ----------
@@ -149,11 +177,7 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
         return launch(reconnection_work, seed, path_samples=spp * gradient_paths(width, height, offsets))
 
     def work(folded_seed):
-        parts = tuple(replay_range(folded_seed, start, stop) for start, stop in ranges)
-        return parts if halves else parts[0]
-
-    def replay_range(folded_seed, start, stop):
-        """The replay shift's sums of base samples ``start .. stop - 1``."""
+        """The replay shift's sums: every launch one chunk of :func:`launch_chunks`, each part reduced apart."""
         mi, dr = modules()
         shifts = ((0, 0),) + GRADIENT_SHIFTS[offsets]
         paths_per_base = len(shifts)
@@ -162,18 +186,23 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
         shift_x = mi.Int32([dx for dx, _ in shifts])
         shift_y = mi.Int32([dy for _, dy in shifts])
         outside_per_sample = paths_per_base * pixels - gradient_paths(width, height, offsets)
-        sums = np.zeros((pixels * paths_per_base, 3))
-        emission_sums = np.zeros((pixels * paths_per_base, 3))
-        albedo_sums = np.zeros((pixels * paths_per_base, 3))
-        nonfinite = 0
-        for first in range(start, stop, per_launch):
-            count = min(per_launch, stop - first)
+        half = spp // 2 if halves else None
+        names = ("sums", "albedo", "camera_emission")
+        reductions = [dict.fromkeys(names) for _ in range(2 if halves else 1)]
+        nonfinite = [0] * len(reductions)
+        for first, count, part in launch_chunks(spp, per_launch, half):
+            # Lane ((part * pixels + pixel) * paths_per_base + shift) * block_size + sample: each part's blocks
+            # (pixel by pixel, shift by shift) follow one another, so its block sums come back contiguous.
+            parts = (part,) if part is not None else (0, 1)
+            block_size = count // len(parts)
             index = dr.arange(mi.UInt32, pixels * paths_per_base * count)
-            samples_per_block = dr.opaque(mi.UInt32, count)
+            samples_per_block = dr.opaque(mi.UInt32, block_size)
             block = index // samples_per_block
             shift = block % dr.opaque(mi.UInt32, paths_per_base)
-            pixel = block // dr.opaque(mi.UInt32, paths_per_base)
-            generator = seeded_generator(pixel, index % samples_per_block + dr.opaque(mi.UInt32, first), folded_seed, 0)
+            pixel = (block // dr.opaque(mi.UInt32, paths_per_base)) % dr.opaque(mi.UInt32, pixels)
+            part_block = block // dr.opaque(mi.UInt32, pixels * paths_per_base)
+            sample_index = index % samples_per_block + part_block * samples_per_block + dr.opaque(mi.UInt32, first)
+            generator = seeded_generator(pixel, sample_index, folded_seed, 0)
             film_width = dr.opaque(mi.Int32, width)
             target_x = mi.Int32(pixel % mi.UInt32(film_width)) + dr.gather(mi.Int32, shift_x, shift)
             target_y = mi.Int32(pixel // mi.UInt32(film_width)) + dr.gather(mi.Int32, shift_y, shift)
@@ -184,25 +213,38 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
             recorded = {}
             value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded), inside)
             # A layout that counts no emission seen directly leaves its sums 0 without reducing zeros.
-            channels = [value.x, value.y, value.z]
+            channels = {"sums": [value.x, value.y, value.z]}
             if albedo:
                 first_albedo = dr.select(finite, recorded["diffuse_albedo"], 0.0)
-                channels += [first_albedo.x, first_albedo.y, first_albedo.z]
+                channels["albedo"] = [first_albedo.x, first_albedo.y, first_albedo.z]
             if layout.count_camera_emission:
                 emission = dr.select(finite, recorded["camera_emission"], 0.0)
-                channels += [emission.x, emission.y, emission.z]
-            dr.eval(finite, *channels)
-            nonfinite += count_false(finite) - count * outside_per_sample
-            reduced = [dr.block_sum(channel, count) for channel in channels]
+                channels["camera_emission"] = [emission.x, emission.y, emission.z]
+            # The kept lanes are counted by the same block sums (exact in float32: a block holds at most
+            # GRADIENT_LANE_LIMIT / pixels lanes), not read back lane by lane.
+            kept_lanes = dr.select(finite, mi.Float(1.0), mi.Float(0.0))
+            flat = [channel for name in names for channel in channels.get(name, ())] + [kept_lanes]
+            dr.eval(*flat)
+            reduced = [dr.block_sum(channel, block_size) for channel in flat]
             dr.eval(reduced)
-            sums += stacked(reduced[:3])
-            if albedo:
-                albedo_sums += stacked(reduced[3:6])
-            if layout.count_camera_emission:
-                emission_sums += stacked(reduced[-3:])
+            reduced = [np.asarray(channel) for channel in reduced]
+            blocks = pixels * paths_per_base
+            for position, own in enumerate(parts):
+                own_blocks = slice(position * blocks, (position + 1) * blocks)
+                kept = int(np.sum(reduced[-1][own_blocks], dtype=np.float64))
+                nonfinite[own] += blocks * block_size - kept - block_size * outside_per_sample
+                column = 0
+                for name in names:
+                    if name in channels:
+                        values = stacked([channel[own_blocks] for channel in reduced[column:column + 3]])
+                        reduction = reductions[own]
+                        reduction[name] = values if reduction[name] is None else reduction[name] + values
+                        column += 3
         shape = (height, width, paths_per_base, 3)
-        return GradientSamples(sums.reshape(shape), emission_sums.reshape(shape), albedo_sums.reshape(shape),
-                               nonfinite)
+        samples = tuple(GradientSamples(*(np.zeros(shape) if reduction[name] is None else reduction[name].reshape(shape)
+                                          for name in ("sums", "camera_emission", "albedo")), bad_paths)
+                        for reduction, bad_paths in zip(reductions, nonfinite))
+        return samples if halves else samples[0]
 
     return launch(work, seed, path_samples=spp * gradient_paths(width, height, offsets))
 
@@ -223,11 +265,7 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
     reductions = [{name: np.zeros((pixels, 1 + len(shifts), 3)) for name in names} for _ in range(part_count)]
     pairs = [np.zeros((pixels, len(shifts), 2, 3)) for _ in range(part_count)]
     nonfinite = [0] * part_count
-    first = 0
-    while first < spp:
-        count = min(per_launch, spp - first)
-        if half is not None and first < half < first + count and 2 * (half - first) != count:
-            count = half - first  # a launch holds one part, or both halves of it split in the middle
+    for first, count, part in launch_chunks(spp, per_launch, half):
         index = dr.arange(mi.UInt32, pixels * count)
         samples_per_pixel = dr.opaque(mi.UInt32, count)
         pixel = index // samples_per_pixel
@@ -272,8 +310,7 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
                 reductions[part][name] += values[:, position * paths:(position + 1) * paths]
             pairs[part] += values[:, len(names) * paths:].reshape(pixels, len(shifts), 2, 3)
 
-        if half is None or first + count <= half or first >= half:  # the chunk is one part: one block per pixel
-            part = 0 if half is None or first + count <= half else 1
+        if part is not None:  # the chunk is one part: one block per pixel
             reduced = [dr.block_sum(channel, count) for channel in scalars]
             dr.eval(reduced)
             nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag))) for flag in bad)
@@ -286,7 +323,6 @@ def _reconnection_work(scene, layout, grid_shape, spp, folded_seed, half=None):
                 in_part = lane_half if part else ~lane_half
                 nonfinite[part] += sum(int(np.count_nonzero(np.asarray(flag & in_part))) for flag in bad)
                 accumulate(part, [np.asarray(channel, dtype=np.float64)[part::2] for channel in reduced])
-        first += count
     shape = (height, width, 1 + len(shifts), 3)
     return tuple(GradientSamples(reduction["sums"].reshape(shape), reduction["camera_emission"].reshape(shape),
                                  reduction["albedo"].reshape(shape), bad_paths, reduction["replayed"].reshape(shape),
