@@ -8,6 +8,7 @@ verdict changed is printed as a Markdown table (old, new, why), which
 ``docs/experiments/README.md`` carries. Nothing renders: folders without
 per-pixel images keep their untrimmed relMSE as the headline metric.
 
+A folder with the guided methods' ``table_6.md`` (its PT times at their quality) gets it again.
 A suite whose scenes are re-judged gets its ``suite.csv``, ``aggregate.csv``/``.md`` and ``speedups.png`` again
 (:func:`sparselt.experiments.suite_report.write_suite_tables`, the bootstrap's recorded seed); pages (``index.html``)
 stay as measured.
@@ -23,12 +24,14 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 from sparselt.experiments.equal_time import DERIVED_ROW_COLUMNS, fit_record, judge
 from sparselt.provenance import write_json
-from sparselt.report.comparison import equal_time_table, results_csv, summary_csv
+from sparselt.report.comparison import equal_time_table, results_csv, summary_csv, table_6
 from sparselt.report.comparison_rows import COLUMN_ORDER
 from sparselt.report.results import read_records_csv
+from sparselt.report.table import markdown_document
 from sparselt.results import reference_spp
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
@@ -46,6 +49,15 @@ def rejudge(folder):
     table = equal_time_table(summary, methods=record["methods"], epsilon=record.get("relmse_epsilon", 0.01))
     files = {"results.csv": results_csv(rows, COLUMN_ORDER), "summary.csv": summary_csv(summary),
              "equal_time.md": table.markdown(), "equal_time.csv": table.csv()}
+    if (folder / "table_6.md").exists():  # the guided methods' table carries PT's time at their quality
+        config = record["config"]
+        shape = SimpleNamespace(kind=config["kind"], shape=config["shape"],
+                                output_resolution=tuple(config["resolution"]))
+        guided = table_6(rows, config["scene"], shape, methods=record["methods"])
+        if guided:
+            files["table_6.md"] = markdown_document(*guided)
+            if (folder / "table_6.csv").exists():
+                files["table_6.csv"] = guided[0].csv()
     old = read_records_csv(folder / "summary.csv")
     return files, record, old, summary, rows, fit
 

@@ -4,6 +4,7 @@ Rows are synthetic (plain dicts, as a comparison's cells hold them), so every
 expected value is known exactly.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -11,6 +12,8 @@ import pytest
 
 from sparselt.experiments.equal_time import (
     add_equal_time_columns,
+    correction_uncertainty,
+    equal_quality_speedup,
     fit_baseline,
     fit_record,
     fit_relmse,
@@ -208,6 +211,80 @@ def test_equal_quality_speedup_follows_the_curved_fit():
     record = next(record for record in summary if record["method"] == "fast")
     assert record["headline_metric"] == "relmse_trimmed" and record["headline_exponent"] == pytest.approx(0.6)
     assert record["speedup_equal_quality"] == pytest.approx((0.05 + 0.01 * 512) / seconds, rel=1e-3)
+
+
+def bent_pt_rows(bend, spps=(8, 16, 32, 64, 128, 256), noise=0.0, seed=5):
+    """PT rows whose untrimmed relMSE is c / spp + floor times ``bend(spp)`` (a shape the line does not have), the
+    same in every seed, with relative noise per row."""
+    generator = np.random.default_rng(seed)
+    rows = pt_rows(spps=spps)
+    for row in rows:
+        row["relmse"] *= bend(row["spp"]) * (1 + noise * generator.standard_normal())
+    return rows
+
+
+def test_the_local_correction_reads_every_rung_at_its_measured_mean_and_is_one_on_the_model():
+    """On c / spp + floor exactly the correction is 1 (no reading moves); where every seed bends the same way off
+    the line, PT's value at a rung's time is that rung's measured mean (to the seeds' fits' small differences of
+    shape), per seed its own fit times the mean bend."""
+    exact = fit_baseline(pt_rows(), "pt")
+    spps, means, errors = exact.corrections["relmse"]
+    assert spps.tolist() == [8, 16, 32, 64, 128] and np.allclose(means, 1.0) and np.allclose(errors, 0.0, atol=1e-12)
+    assert exact.relmse_at(0.05 + 0.01 * 50, 2) == pytest.approx(0.55 / 50 + 0.001, rel=1e-9)
+
+    def bend(spp):
+        return 1.0 + 0.15 * math.sin(math.log2(spp))
+
+    rows = bent_pt_rows(bend)
+    fit = fit_baseline(rows, "pt")
+    for spp in (16, 64, 128):
+        measured = np.mean([row["relmse"] for row in rows if row["spp"] == spp])
+        at = 0.05 + 0.01 * spp
+        assert np.mean([fit.relmse_at(at, seed) for seed in SEEDS]) == pytest.approx(measured, rel=1e-3)
+        assert fit.mean_value("relmse", spp) == pytest.approx(measured, rel=1e-3)
+    record = fit_record(fit)["relmse_rung_correction"]
+    assert [entry["spp"] for entry in record] == [8, 16, 32, 64, 128, 256]
+
+
+def test_the_corrected_curve_never_rises_and_its_inverse_is_exact():
+    """mean_value is non-increasing over the ladder even where rung noise near a floor lifts a rung; spp_reaching
+    inverts it to float precision inside the ladder and gives the rung with '<' or '>' beyond it."""
+    rows = bent_pt_rows(lambda spp: 1.6 if spp == 128 else 1.0)  # one rung 60% above the line in every seed
+    fit = fit_baseline(rows, "pt")
+    grid = np.geomspace(8, 256, 400)
+    values = fit.mean_value("relmse", grid)
+    assert np.all(np.diff(values) <= 1e-15)
+    targets = fit.mean_value("relmse", np.array([10.0, 40.0, 90.0]))
+    spp, bound = fit.spp_reaching("relmse", targets)
+    assert np.allclose(fit.mean_value("relmse", spp), targets, rtol=1e-9) and bound.tolist() == ["", "", ""]
+    spp, bound = fit.spp_reaching("relmse", np.array([1.0, 1e-9]))
+    assert spp.tolist() == [8.0, 256.0] and bound.tolist() == ["<", ">"]
+    for ratio in (1.0, 0.5, 2.0):  # the speed-up is 1 at a ratio of 1 and falls as the ratio grows
+        speedup, _ = equal_quality_speedup(fit, "relmse", ratio, 0.05 + 0.01 * 40, 0.0)
+        assert speedup == pytest.approx(1.0, rel=1e-9) if ratio == 1.0 else (speedup > 1) == (ratio < 1)
+
+
+def test_the_local_correction_moves_a_verdict_the_line_misread_and_its_error_widens_the_interval():
+    """PT's error 15% above its line at 32-64 spp in every seed: the line reads PT too good there and a method
+    15% worse than the line's reading seems to lose; corrected, PT's own measured error makes it a tie. With seed
+    noise on the bend, the correction's standard error widens the interval."""
+    def bend(spp):
+        return 1.15 if spp in (32, 64) else 1.0
+
+    line_at_48 = [c / 48 + 0.001 for c in (0.5, 0.55, 0.45)]
+    at = 0.05 + 0.01 * 48
+    method = method_rows("m", 8, at, [1.15 * value * f for value, f in zip(line_at_48, (0.99, 1.0, 1.01))])
+    rows = bent_pt_rows(bend) + method
+    summary = summarize(rows, add_equal_time_columns(rows, baseline="pt"), baseline="pt")
+    record = next(record for record in summary if record["method"] == "m")
+    assert record["relmse_ratio"] == pytest.approx(1.0, abs=0.02) and record["verdict"] == "within noise"
+    line = dataclasses.replace(fit_baseline(rows, "pt"), corrections={})  # the fit alone, as before the correction
+    line_ratio = np.mean([row["relmse"] for row in method]) / np.mean([line.relmse_at(at, seed) for seed in SEEDS])
+    assert line_ratio > 1.08  # the line, pulled up a little by the bend, still reads PT about 10% too good
+    noisy_rows = bent_pt_rows(bend, noise=0.05) + [dict(row) for row in method]
+    fit = add_equal_time_columns(noisy_rows, baseline="pt")
+    assert correction_uncertainty(fit, "relmse", at, 3) > 0
+    assert correction_uncertainty(fit, "relmse", at, 1) == 0.0
 
 
 def test_a_time_beyond_the_ladder_has_no_pt_value_and_says_so():

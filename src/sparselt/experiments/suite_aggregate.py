@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from .equal_time import power_root, row_floor, spp_power
+from .equal_time import correction_uncertainty, row_floor
 
 #: Bootstrap resamples of an aggregate's interval, and the generator's seed (recorded in ``suite.json``).
 RESAMPLES = 2000
@@ -78,6 +78,7 @@ class SceneCell:
             self.seconds = float(record["seconds_total"])
             timing = record.get("timing_uncertainty")
             self.timing = float(timing) if isinstance(timing, (int, float)) and math.isfinite(timing) else 0.0
+            self.correction = correction_uncertainty(fit, metric, self.seconds, len(rows))
             self.ratio = float(self.numerator.mean() / self.denominator.mean())
 
     def draws(self, generator, shape):
@@ -97,20 +98,19 @@ class SceneCell:
         ratio = mean_of(self.numerator) / mean_of(self.denominator)
         seconds = self.seconds * (1.0 + self.timing) ** (generator.standard_normal(shape) / NORMAL_QUANTILE)
         fit = self.fit
-        c, fitted_floor = fit.mean_fit(self.metric)
-        exponent = fit.exponent(self.metric)
         lowest, highest = fit.spp_range
 
         def own(at):  # PT's debiased value at time ``at`` (its spp clamped to the ladder), seeds' mean fit
-            spp = np.clip((at - fit.intercept) / fit.slope, lowest, highest)
-            return c / spp_power(spp, exponent) + fitted_floor - self.floor
+            return fit.mean_value(self.metric, np.clip((at - fit.intercept) / fit.slope, lowest, highest)) - self.floor
 
         here, moved = own(self.seconds), own(seconds)
-        ratio = np.where((moved > 0) & (here > 0), ratio * here / np.where(moved > 0, moved, 1.0), ratio)
+        # PT's curve times its local correction's error, drawn from its standard error (log-normal, as the cell's
+        # interval widens by it): the ratio is over that curve, and the speed-up read on it.
+        spread = self.correction / NORMAL_QUANTILE
+        curve = np.exp(spread * generator.standard_normal(shape)) if spread > 0 else 1.0
+        ratio = np.where((moved > 0) & (here > 0), ratio * here / (np.where(moved > 0, moved, 1.0) * curve), ratio)
         # The speed-up of each ratio, as equal_quality_speedup maps it (bounded by PT's ladder at both ends).
-        target = self.floor + ratio * moved - fitted_floor
-        spp = np.clip(power_root(np.where(target > 0, c / np.where(target > 0, target, 1.0), np.inf), exponent),
-                      lowest, highest)
+        spp, _ = fit.spp_reaching(self.metric, self.floor + ratio * moved)
         speedup = (fit.intercept + fit.slope * spp) / seconds
         return np.log(ratio), np.log(speedup)
 

@@ -90,8 +90,13 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
             floor = np.mean([value["floor"] for value in seeds.values()])
             exponent = fit.get(f"{metric}_exponent", 1.0)
             power = "spp" if exponent == 1.0 else f"spp^{exponent:g}"
-            right.plot(fit["intercept_seconds"] + fit["seconds_per_spp"] * spps, c / spps ** exponent + floor, "k--",
-                       lw=1, label=f"PT fit: {c:.3g}/{power} + {floor:.2g}")
+            curve = c / spps ** exponent + floor
+            rungs = fit.get(f"{metric}_rung_correction")
+            if rungs:  # the fit as the verdicts read it: times the rungs' mean measured/fitted, non-increasing
+                curve = np.minimum.accumulate(curve * np.interp(np.log(spps), [np.log(rung["spp"]) for rung in rungs],
+                                                                [rung["mean"] for rung in rungs]))
+            right.plot(fit["intercept_seconds"] + fit["seconds_per_spp"] * spps, curve, "k--", lw=1,
+                       label=f"PT fit: {c:.3g}/{power} + {floor:.2g}" + (", rung-corrected" if rungs else ""))
     left.set(xscale="log", xlabel="seconds (median of repeats, kernels warm)", ylabel="SSIM",
              title=f"{scene}: SSIM vs time")
     right.set(xscale="log", yscale="log", xlabel="seconds (median of repeats, kernels warm)",
