@@ -351,8 +351,9 @@ class BaselineFit:
             return math.nan
         c, floor = fits[seed]
         spp = self.spp_at(seconds)
-        scale = self.mean_value(metric, spp) / self.corrected_value(metric, spp) * self.correction(metric, spp)[0]
-        return (c / spp_power(spp, self.exponent(metric)) + floor) * float(scale)
+        corrected = self.corrected_value(metric, spp)
+        held = self.mean_value(metric, spp) / corrected if corrected > 0 else 1.0  # an all-zero ladder: no hold
+        return (c / spp_power(spp, self.exponent(metric)) + floor) * float(held * self.correction(metric, spp)[0])
 
     def relmse_at(self, seconds, seed):
         """PT's relMSE at ``seconds`` for ``seed``; ``nan`` beyond the ladder."""
