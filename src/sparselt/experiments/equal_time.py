@@ -496,9 +496,9 @@ def rung_corrections(ladders, fits, exponent=1.0):
 
     Returns
     -------
-    (ndarray, ndarray, ndarray)
+    (ndarray, ndarray, ndarray) or None
         The rungs' spp (those every seed ran), the means and their standard
-        errors (0 with one seed).
+        errors (0 with one seed); None where the seeds share no rung.
 
     Notes
     -----
@@ -517,6 +517,8 @@ def rung_corrections(ladders, fits, exponent=1.0):
     verdict's interval (:func:`correction_uncertainty`).
     """
     common = sorted(set.intersection(*(set(spps.tolist()) for spps, _ in ladders.values())))
+    if not common:  # seeds that ran no rung in common: no correction
+        return None
     ratios = []
     for seed, (spps, values) in ladders.items():
         c, floor = fits[seed]
@@ -592,7 +594,9 @@ def fit_baseline(rows, baseline):
             exponent, fits[metric], residuals[metric] = fit_exponent(ladders[metric], curved=metric == HEADLINE_METRIC)
             if exponent != 1.0:
                 exponents[metric] = exponent
-            corrections[metric] = rung_corrections(ladders[metric], fits[metric], exponent)
+            correction = rung_corrections(ladders[metric], fits[metric], exponent)
+            if correction is not None:
+                corrections[metric] = correction
         else:
             fits[metric] = {}
     floors = {metric: float(np.median([row_floor(row, metric) for row in pt])) for metric in metrics}
