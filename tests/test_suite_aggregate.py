@@ -1,5 +1,6 @@
 """Issue 36: the suite's geometric means and their two-level bootstrap intervals, on synthetic suites."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -106,3 +107,23 @@ def test_the_interval_covers_the_suites_true_geometric_mean_about_95_percent_of_
         (record,) = aggregate(scenes, resamples=500, seed=int(generator.integers(2**31)))
         covered += record["relmse_ratio_ci_low"] <= 0.5 <= record["relmse_ratio_ci_high"]
     assert covered / trials >= 0.85
+
+
+def test_pt_local_correction_moves_the_bootstrap_speedup_and_its_error_widens_the_interval():
+    """A fit whose rungs measured PT 30% above the model at 64 spp: the bootstrap's speed-up is the comparison's
+    (equal_quality_speedup on the corrected curve), not the model's; the correction's standard error widens it."""
+    def width(record):
+        return math.log(record["speedup_ci_high"] / record["speedup_ci_low"])
+
+    rungs = np.array([1.0, 64.0, 4096.0])
+    bent = dataclasses.replace(fit(spp_range=(1, 4096)),
+                               corrections={"relmse": (rungs, np.array([1.0, 1.3, 1.0]), np.zeros(3))})
+    uncertain = dataclasses.replace(bent, corrections={"relmse": (rungs, np.array([1.0, 1.3, 1.0]),
+                                                                  np.full(3, 0.05))})
+    (plain,) = aggregate([scene("a", [0.5] * 3, [1.0] * 3, seconds=0.64, baseline=fit(spp_range=(1, 4096)))])
+    (corrected,) = aggregate([scene("a", [0.5] * 3, [1.0] * 3, seconds=0.64, baseline=bent)])
+    (wide,) = aggregate([scene("a", [0.5] * 3, [1.0] * 3, seconds=0.64, baseline=uncertain)])
+    expected, _ = equal_quality_speedup(bent, "relmse", 0.5, 0.64, 0.0)
+    assert corrected["speedup_geometric_mean"] == pytest.approx(expected, rel=1e-9)
+    assert plain["speedup_geometric_mean"] == pytest.approx(2.0, rel=1e-9) and abs(expected - 2.0) > 0.2
+    assert width(corrected) == pytest.approx(0.0, abs=1e-9) and width(wide) > 0.05
