@@ -125,5 +125,5 @@ def test_pt_local_correction_moves_the_bootstrap_speedup_and_its_error_widens_th
     (wide,) = aggregate([scene("a", [0.5] * 3, [1.0] * 3, seconds=0.64, baseline=uncertain)])
     expected, _ = equal_quality_speedup(bent, "relmse", 0.5, 0.64, 0.0)
     assert corrected["speedup_geometric_mean"] == pytest.approx(expected, rel=1e-9)
-    assert plain["speedup_geometric_mean"] == pytest.approx(2.0, rel=1e-9) and abs(expected - 2.0) > 0.2
+    assert plain["speedup_geometric_mean"] == pytest.approx(2.0, rel=1e-9) and abs(expected - 2.0) > 0.05
     assert width(corrected) == pytest.approx(0.0, abs=1e-9) and width(wide) > 0.05
