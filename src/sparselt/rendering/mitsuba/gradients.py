@@ -89,7 +89,7 @@ def launch_chunks(spp, per_launch, half=None):
     are ``0 .. half - 1``), a launch holds samples of one part (``part`` 0 or
     1), or both halves evenly, split in the middle (``part`` None:
     ``first + count / 2 == half``), so that both halves of a small budget are
-    one launch (each launch adds its tracing and readback) while a launch
+    one launch (one tracing of the kernel, one readback) while a launch
     that would straddle the half unevenly ends at it.
     """
     first = 0
@@ -121,8 +121,9 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
     Dr.Jit launch (lane ``((part * pixels + pixel) * (1 + offsets) + shift)
     * n + sample``), reduced per pixel and shift inside it: nothing per
     sample leaves it. Both halves of an even budget that fits one launch
-    (:data:`GRADIENT_LANE_LIMIT`) are that launch (:func:`launch_chunks`;
-    a launch's tracing and readback cost about 0.04 s at 256x256).
+    (:data:`GRADIENT_LANE_LIMIT`) are that launch (:func:`launch_chunks`:
+    one tracing, one readback; in the methods' times the change was not
+    measurable, docs/experiments/README.md, twelfth session).
 
     Parameters
     ----------
@@ -168,10 +169,9 @@ def sample_gradients(scene, layout, grid_shape, spp, seed, *, offsets=4, shift="
     if spp < 1 or (halves and spp < 2):
         raise ValueError(f"spp must be >= {2 if halves else 1}{' to be halved' if halves else ''}, got {spp}")
     width, height = scene.width, scene.height
-    ranges = ((0, spp // 2), (spp // 2, spp)) if halves else ((0, spp),)
     if shift == "reconnection":
         def reconnection_work(folded_seed):
-            parts = _reconnection_work(scene, layout, grid_shape, spp, folded_seed, ranges[0][1] if halves else None)
+            parts = _reconnection_work(scene, layout, grid_shape, spp, folded_seed, spp // 2 if halves else None)
             return parts if halves else parts[0]
 
         return launch(reconnection_work, seed, path_samples=spp * gradient_paths(width, height, offsets))
