@@ -285,7 +285,7 @@ class BaselineFit:
         """The seeds' mean fit times its local correction at ``spp`` (a number or an array):
         ``(c / spp^k + floor) * correction``, before :meth:`mean_value` makes it non-increasing."""
         c, floor = self.mean_fit(metric)
-        return (c / spp_power(spp, self.exponent(metric)) + floor) * self.correction(metric, spp)[0]
+        return fitted_value(c, floor, spp, self.exponent(metric)) * self.correction(metric, spp)[0]
 
     def mean_value(self, metric, spp):
         """PT's ``metric`` at ``spp`` (a number or an array within the ladder): the running minimum over the
@@ -293,9 +293,18 @@ class BaselineFit:
         the corrected curve rises between rungs (rung noise near a floor), it is held at its lowest value
         before, so PT's quality and the equal-quality speed-up (:meth:`spp_reaching`) read one non-increasing
         curve."""
-        spp = np.asarray(spp, dtype=np.float64)
+        return self._held(metric, spp, self._running_minimum(metric))
+
+    def _running_minimum(self, metric):
+        """:meth:`corrected_value` on a :data:`REACHING_GRID`-point log grid over the ladder, and its running
+        minimum: ``(grid, running)``, what :meth:`_held` reads."""
         grid = np.geomspace(*self.spp_range, REACHING_GRID)
-        running = np.minimum.accumulate(self.corrected_value(metric, grid))
+        return grid, np.minimum.accumulate(self.corrected_value(metric, grid))
+
+    def _held(self, metric, spp, running_minimum):
+        """:meth:`mean_value` at ``spp`` given :meth:`_running_minimum`'s ``(grid, running)``."""
+        grid, running = running_minimum
+        spp = np.asarray(spp, dtype=np.float64)
         before = np.clip(np.searchsorted(grid, spp, side="right") - 1, 0, grid.size - 1)
         value = np.minimum(self.corrected_value(metric, spp), running[before])
         return float(value) if value.ndim == 0 else value
@@ -312,15 +321,16 @@ class BaselineFit:
         """
         targets = np.asarray(targets, dtype=np.float64)
         lowest, highest = self.spp_range
-        grid = np.geomspace(lowest, highest, REACHING_GRID)
-        values = self.mean_value(metric, grid)
+        running_minimum = self._running_minimum(metric)  # once for the grid and every bisection step
+        grid = running_minimum[0]
+        values = self._held(metric, grid, running_minimum)
         index = np.searchsorted(-values, -targets, side="left")  # the first grid point at or below the target
         below, beyond = index == 0, index >= grid.size
         left = np.log(grid[np.clip(index - 1, 0, grid.size - 1)])
         right = np.log(grid[np.clip(index, 0, grid.size - 1)])
         for _ in range(REACHING_BISECTIONS):  # mean_value(exp(left)) > target >= mean_value(exp(right))
             middle = 0.5 * (left + right)
-            reached = self.mean_value(metric, np.exp(middle)) <= targets
+            reached = self._held(metric, np.exp(middle), running_minimum) <= targets
             right, left = np.where(reached, middle, right), np.where(reached, left, middle)
         spp = np.where(below, float(lowest), np.where(beyond, float(highest), np.exp(right)))
         bound = np.where(below, "<", np.where(beyond, ">", ""))
@@ -353,7 +363,7 @@ class BaselineFit:
         spp = self.spp_at(seconds)
         corrected = self.corrected_value(metric, spp)
         held = self.mean_value(metric, spp) / corrected if corrected > 0 else 1.0  # an all-zero ladder: no hold
-        return (c / spp_power(spp, self.exponent(metric)) + floor) * float(held * self.correction(metric, spp)[0])
+        return fitted_value(c, floor, spp, self.exponent(metric)) * float(held * self.correction(metric, spp)[0])
 
     def relmse_at(self, seconds, seed):
         """PT's relMSE at ``seconds`` for ``seed``; ``nan`` beyond the ladder."""
@@ -413,6 +423,12 @@ def spp_power(spp, exponent):
     """``spp ** exponent`` (a number or an array), ``spp`` itself at 1 (the same bytes as before exponents were
     fitted): the denominator of PT's fitted ``c / spp^k + floor``."""
     return spp if exponent == 1.0 else spp ** exponent
+
+
+def fitted_value(c, floor, spp, exponent=1.0):
+    """PT's fitted ``c / spp^exponent + floor`` at ``spp`` (a number or an array): one seed's fit, or the seeds'
+    mean (:meth:`BaselineFit.mean_fit`)."""
+    return c / spp_power(spp, exponent) + floor
 
 
 def power_root(value, exponent):
@@ -524,7 +540,7 @@ def rung_corrections(ladders, fits, exponent=1.0):
         c, floor = fits[seed]
         lookup = dict(zip(spps.tolist(), values.tolist()))
         measured = np.array([lookup[spp] for spp in common])
-        fitted = c / spp_power(np.array(common, dtype=np.float64), exponent) + floor
+        fitted = fitted_value(c, floor, np.array(common, dtype=np.float64), exponent)
         ratios.append(measured / np.maximum(fitted, 1e-300))
     ratios = np.array(ratios)
     means = ratios.mean(axis=0)
@@ -990,6 +1006,6 @@ def add_bias_fractions(summary, record, rows=()):
 __all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "FIT_RESIDUAL_LIMIT", "HEADLINE_METRIC", "NOISY_TIMING_RATIO",
            "OUTLIER_DOMINATED_SHARE", "REFERENCE_LIMITED_SHARE", "RELMSE_METRICS", "ROW_SUMMARY_COLUMNS",
            "SUMMARY_COLUMNS", "VERDICTS", "DERIVED_ROW_COLUMNS", "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record",
-           "correction_uncertainty", "equal_quality_speedup", "fit_baseline", "fit_exponent", "fit_record", "power_root", "rung_corrections", "spp_power", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
+           "correction_uncertainty", "equal_quality_speedup", "fit_baseline", "fit_exponent", "fit_record", "fitted_value", "power_root", "rung_corrections", "spp_power", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
            "mean_interval", "ratio_interval", "row_floor", "summarize",
            "timing_uncertainty", "verdict"]
