@@ -24,7 +24,6 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 from sparselt.experiments.equal_time import DERIVED_ROW_COLUMNS, fit_record, judge
 from sparselt.provenance import write_json
@@ -32,7 +31,7 @@ from sparselt.report.comparison import equal_time_table, results_csv, summary_cs
 from sparselt.report.comparison_rows import COLUMN_ORDER
 from sparselt.report.results import read_records_csv
 from sparselt.report.table import markdown_document
-from sparselt.results import reference_spp
+from sparselt.results import reference_spp, report_config
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
 
@@ -50,10 +49,7 @@ def rejudge(folder):
     files = {"results.csv": results_csv(rows, COLUMN_ORDER), "summary.csv": summary_csv(summary),
              "equal_time.md": table.markdown(), "equal_time.csv": table.csv()}
     if (folder / "table_6.md").exists():  # the guided methods' table carries PT's time at their quality
-        config = record["config"]
-        shape = SimpleNamespace(kind=config["kind"], shape=config["shape"],
-                                output_resolution=tuple(config["resolution"]))
-        guided = table_6(rows, config["scene"], shape, methods=record["methods"])
+        guided = table_6(rows, record["config"]["scene"], report_config(record["config"]), methods=record["methods"])
         if guided:
             files["table_6.md"] = markdown_document(*guided)
             if (folder / "table_6.csv").exists():

@@ -41,7 +41,6 @@ import json
 import math
 import re
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 
@@ -53,7 +52,7 @@ from sparselt.experiments.integration_report import (
     summarise,
 )
 from sparselt.report.comparison import equal_time_table, table_6, table_8
-from sparselt.results import reference_spp
+from sparselt.results import reference_spp, report_config
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "docs" / "experiments"
 #: Relative tolerance for numbers recomputed from ``results.csv``'s six printed digits (module docstring).
@@ -141,9 +140,7 @@ def comparison_setup(folder):
         names = dict.fromkeys(row["method"] for row in read_records(folder / "results.csv"))
         methods = {name: {"baseline": name == "pt", "family": "guided" if name.startswith("guided-") else None,
                           "options": {"map_spp": record["config"].get("map_spp") or 16}} for name in names}
-    config = record["config"]
-    shape = SimpleNamespace(kind=config["kind"], shape=config["shape"], output_resolution=tuple(config["resolution"]))
-    return config["scene"], shape, methods, record["relmse_epsilon"]
+    return record["config"]["scene"], report_config(record["config"]), methods, record["relmse_epsilon"]
 
 
 # ------------------------------------------------------------------------------------------------ comparing

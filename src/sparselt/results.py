@@ -57,6 +57,15 @@ def reference_spp(record):
     return spp if isinstance(spp, int) and not isinstance(spp, bool) else None
 
 
+def report_config(config):
+    """What the report's tables read of a comparison's configuration (``kind``, ``shape``,
+    ``output_resolution``), from the ``config`` of its ``compare.json`` record: for tables rebuilt from a
+    folder (:mod:`sparselt.report.comparison`'s ``table_6``, ``table_8``)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(kind=config["kind"], shape=config["shape"], output_resolution=tuple(config["resolution"]))
+
+
 def _comparison(folder):
     """``(rows with the equal-time columns, summary records, attributes)`` of a comparison folder, read only."""
     from .experiments.equal_time import judge
