@@ -610,7 +610,7 @@ def test_a_guide_tolerance_must_be_positive():
 @pytest.mark.parametrize("kind", ["dof", "indirect"])
 def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind):
     """sample_pixel_statistics (reduced in the sampling kernel, uniform, in halves, from a later sample index or
-    explicit lanes) equals the per-pixel sums, minima and maxima of sample_pixels' per-sample outputs: the same
+    per-pixel counts) equals the per-pixel sums, minima and maxima of sample_pixels' per-sample outputs: the same
     samples, nothing else."""
     from sparselt.rendering.mitsuba import PIXEL_STATISTICS
 
@@ -641,12 +641,12 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
     uniform, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp)
     halves, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp, halves=True)
     later, _ = scene.sample_pixel_statistics(layout, grid, 5, names, spp=spp // 2, first_sample=spp // 2)
-    # Explicit lanes: pixels 4..9 with 1..6 samples each, sample indices from 0, as in the uniform pass.
+    # Counts: pixels 4..9 with 1..6 samples each, sample indices from 0, as in the uniform pass.
     chosen = np.arange(4, 10)
     counts = chosen - 3
-    lane_pixels = np.repeat(chosen, counts)
-    lane_samples = np.concatenate([np.arange(count) for count in counts])
-    explicit, _ = scene.sample_pixel_statistics(layout, grid, 5, names, lanes=(lane_pixels, lane_samples))
+    per_pixel = np.zeros(pixels, dtype=np.int64)
+    per_pixel[chosen] = counts
+    explicit, _ = scene.sample_pixel_statistics(layout, grid, 5, names, counts=per_pixel)
     for name in names:
         reduction = PIXEL_STATISTICS[name]
         array = np.asarray(per_sample[name], dtype=np.float64).reshape((pixels, spp) + np.shape(per_sample[name])[1:])
@@ -662,27 +662,61 @@ def test_in_kernel_pixel_statistics_are_the_reductions_of_the_same_samples(kind)
             np.testing.assert_allclose(explicit[name][pixel], want, rtol=1e-5, atol=1e-6, err_msg=name)
 
 
-def test_explicit_lanes_spanning_several_blocks_reduce_like_their_samples():
-    """Explicit lanes fill whole blocks of EXPLICIT_BLOCK slots per pixel (reduced in the kernel, merged on the
-    host): pixels with 1, a block, a block and one, and several blocks of samples, sample indices not from 0,
-    equal the reductions of the same samples of sample_pixels; the same seed gives the same bytes."""
-    from sparselt.rendering.mitsuba.pixel_statistics import EXPLICIT_BLOCK
+def test_allocation_layouts_are_whole_blocks_then_single_lanes_of_whole_pixels():
+    """A pixel's samples are whole blocks of ALLOCATION_BLOCK, then its rest one lane each, consecutive sample
+    indices from first_sample, every sample once; launches hold whole pixels in pixel order, a new one where the
+    running count of lanes passes a multiple of lane_limit (so at most lane_limit plus one pixel's lanes)."""
+    from sparselt.rendering.mitsuba.pixel_statistics import ALLOCATION_BLOCK, allocation_layouts
+
+    counts = np.array([0, 1, ALLOCATION_BLOCK, 2 * ALLOCATION_BLOCK - 1, 5, 3 * ALLOCATION_BLOCK + 6, 0, 2])
+    for limit, launches in ((1 << 22, 1), (ALLOCATION_BLOCK, 5), (2 * ALLOCATION_BLOCK, 3)):
+        layouts = allocation_layouts(counts, first_sample=7, lane_limit=limit)
+        assert len(layouts) == launches, limit
+        drawn = {pixel: [] for pixel in range(counts.size)}
+        order = []
+        for part in layouts:
+            assert part.block == ALLOCATION_BLOCK
+            lanes = part.block * part.block_pixels.size + part.single_pixels.size
+            assert lanes <= limit + counts.max()
+            for pixel, first in zip(part.block_pixels, part.block_first_samples):
+                drawn[int(pixel)].extend(range(int(first), int(first) + part.block))
+            for pixel, sample in zip(part.single_pixels, part.single_samples):
+                drawn[int(pixel)].append(int(sample))
+            order.extend(np.unique(np.concatenate([part.block_pixels, part.single_pixels])).tolist())
+        assert order == [1, 2, 3, 4, 5, 7]  # whole pixels, in order, each in one launch
+        for pixel, count in enumerate(counts):
+            assert drawn[pixel] == list(range(7, 7 + count)), (limit, pixel)
+    single = allocation_layouts(counts)[0]
+    assert np.array_equal(single.block_pixels, [2, 3, 5, 5, 5])
+    assert np.array_equal(np.bincount(single.single_pixels, minlength=8), counts % ALLOCATION_BLOCK)
+    assert allocation_layouts(np.zeros(4, dtype=np.int64)) == []
+
+
+def test_counts_spanning_several_blocks_reduce_like_their_samples():
+    """Counts of 1, a block, a block and one, 2 blocks - 1 and several blocks of samples, sample
+    indices not from 0, equal the reductions of the same samples of sample_pixels; the same seed gives the same
+    bytes; pixels without samples hold the reductions' identities; three-channel statistics are
+    VECTOR_STATISTICS."""
+    from sparselt.rendering.mitsuba.pixel_statistics import ALLOCATION_BLOCK, VECTOR_STATISTICS
 
     scene = _loaded(get_scene("cornell-box").with_lens(0.1, 1.0), (6, 5))
     layout = path_layout("dof", 3, thin_lens=True)
-    grid, first, spp = (6, 5, 2, 2), 3, 3 * EXPLICIT_BLOCK + 5
+    grid, first, spp = (6, 5, 2, 2), 3, 3 * ALLOCATION_BLOCK + 5
     names = ("rgb", "rgb_squared", "nearest", "farthest")
     values, _, _, auxiliary = scene.sample_pixels(layout, grid, spp, 9, auxiliary=("primary_depth",))
     depth = auxiliary["primary_depth"].reshape(30, spp)
     values = values.reshape(30, spp, 3).astype(np.float64)
-    chosen = np.array([0, 7, 8, 20, 29])
-    counts = np.array([1, EXPLICIT_BLOCK, EXPLICIT_BLOCK + 1, spp - first, 2 * EXPLICIT_BLOCK + 3])
-    lanes = (np.repeat(chosen, counts), np.concatenate([np.arange(first, first + count) for count in counts]))
-    explicit, nonfinite = scene.sample_pixel_statistics(layout, grid, 9, names, lanes=lanes)
-    again, _ = scene.sample_pixel_statistics(layout, grid, 9, names, lanes=lanes)
+    chosen = np.array([0, 7, 8, 20, 22, 29])
+    counts = np.array([1, ALLOCATION_BLOCK, ALLOCATION_BLOCK + 1, spp - first, 2 * ALLOCATION_BLOCK - 1,
+                       2 * ALLOCATION_BLOCK + 3])
+    per_pixel = np.zeros(30, dtype=np.int64)
+    per_pixel[chosen] = counts
+    explicit, nonfinite = scene.sample_pixel_statistics(layout, grid, 9, names, counts=per_pixel, first_sample=first)
+    again, _ = scene.sample_pixel_statistics(layout, grid, 9, names, counts=per_pixel, first_sample=first)
     assert nonfinite == 0
     for name in names:
         assert explicit[name].tobytes() == again[name].tobytes(), name
+        assert explicit[name].shape == ((30, 3) if name in VECTOR_STATISTICS else (30,)), name
     for pixel, count in zip(chosen, counts):
         part = slice(first, first + count)
         np.testing.assert_allclose(explicit["rgb"][pixel], values[pixel, part].sum(axis=0), rtol=1e-5)
@@ -692,21 +726,36 @@ def test_explicit_lanes_spanning_several_blocks_reduce_like_their_samples():
         assert explicit["farthest"][pixel] == depth[pixel, part].max()
     others = np.setdiff1d(np.arange(30), chosen)
     assert np.all(explicit["rgb"][others] == 0) and np.all(np.isinf(explicit["nearest"][others]))
+    nothing, _ = scene.sample_pixel_statistics(layout, grid, 9, names, counts=np.zeros(30, dtype=np.int64))
+    assert np.all(nothing["rgb"] == 0) and nothing["rgb"].shape == (30, 3) and np.all(np.isinf(nothing["farthest"]))
 
 
-def test_explicit_lanes_must_be_sorted_by_pixel():
+def test_vector_statistics_are_the_three_channel_ones():
+    from sparselt.rendering.mitsuba import PIXEL_STATISTICS
+    from sparselt.rendering.mitsuba.pixel_statistics import VECTOR_STATISTICS
+
+    scene = _loaded(get_scene("cornell-box").with_lens(0.1, 1.0), (3, 2))
+    uniform, _ = scene.sample_pixel_statistics(path_layout("dof", 3, thin_lens=True), (3, 2, 2, 2), 1,
+                                               tuple(PIXEL_STATISTICS), spp=1)
+    assert {name for name, value in uniform.items() if value.ndim == 2} == set(VECTOR_STATISTICS)
+
+
+def test_pixel_statistics_refuse_bad_counts_and_halves():
     scene = _loaded(get_scene("cornell-box"), (4, 3))
     layout = path_layout("indirect", 3, thin_lens=False)
-    with pytest.raises(ValueError, match="sorted by pixel"):
-        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([2, 1]), np.array([0, 0])))
+    with pytest.raises(ValueError, match="counts must be 12 non-negative integers"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), counts=np.ones(5, dtype=np.int64))
+    with pytest.raises(ValueError, match="with negatives"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), counts=np.full(12, -1))
+    with pytest.raises(ValueError, match="counts must be 12 non-negative integers"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), counts=np.full(12, 1.5))
+    with pytest.raises(ValueError, match="exactly one of spp and counts"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), spp=2, counts=np.ones(12, dtype=np.int64))
     with pytest.raises(ValueError, match="halves needs a uniform pass of an even spp, not spp=3"):
         scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), spp=3, halves=True)
-    with pytest.raises(ValueError, match="with explicit lanes"):
-        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([1]), np.array([0])),
+    with pytest.raises(ValueError, match="with counts"):
+        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), counts=np.ones(12, dtype=np.int64),
                                       halves=True)
-    with pytest.raises(ValueError, match="first_sample applies to a uniform pass"):
-        scene.sample_pixel_statistics(layout, (4, 3, 2, 2), 1, ("rgb",), lanes=(np.array([1]), np.array([0])),
-                                      first_sample=4)
 
 
 def _half(context, noisy_columns, spp=2, vertices=1.0):
@@ -828,15 +877,15 @@ def test_each_sampling_plan_spends_the_budget_as_it_says(soft_shadow_dof_context
 
 
 def test_allocated_samples_split_over_several_launches_give_the_same_bytes(soft_shadow_dof_context, monkeypatch):
-    """The allocated lanes go in launches of whole pixels (at most ``STATISTICS_LIMIT`` lanes each): a limit that
+    """The allocated samples go in launches of whole pixels (at most ``LANE_LIMIT`` lanes each): a limit that
     splits them over many launches draws the same samples into the same per-pixel reductions, so the image is
     the same bytes."""
-    from sparselt.methods import axis_aligned
+    from sparselt.rendering.mitsuba import pixel_statistics
 
     row = "aaf-dof:single_launch_below=0:allocation_gain=0:pilot_fraction=0.2"
     whole = _run(row, soft_shadow_dof_context, 16, 3)
     width, height = soft_shadow_dof_context.resolution
-    monkeypatch.setattr(axis_aligned, "STATISTICS_LIMIT", width * height)  # about 13 launches of whole pixels
+    monkeypatch.setattr(pixel_statistics, "LANE_LIMIT", width * height)  # about 13 launches of whole pixels
     split = _run(row, soft_shadow_dof_context, 16, 3)
     assert whole.details["allocation"] == split.details["allocation"] == "allocated"
     assert split.path_samples == whole.path_samples > 13 * width * height

@@ -96,8 +96,8 @@ def _aaf_indirect_runs(history, *, max_depth=3, before_warm_up=lambda: None, row
 @pytest.mark.parametrize("row", ["aaf-indirect:single_launch_below=0", "aaf-indirect:single_launch_below=0:"
                                  "allocation_gain=1000", "aaf-indirect"])
 def test_aaf_indirect_compiles_nothing_after_its_warm_up(history, row):
-    """Over three seeds, whichever way the run goes (the pilot in halves then the allocated pass, explicit lanes
-    and slots; the same with the rest uniform; one launch, the default on this small image), every kernel
+    """Over three seeds, whichever way the run goes (the pilot in halves then the allocated pass, blocks and
+    single lanes; the same with the rest uniform; one launch, the default on this small image), every kernel
     launched was launched before."""
     misses = _aaf_indirect_runs(history, row=row)
     assert not any(misses.values()), f"kernels not warmed, by seed: {misses}"

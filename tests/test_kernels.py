@@ -223,3 +223,31 @@ def test_run_ramps_equal_repeat_and_arange(runs):
             np.testing.assert_array_equal(out, expected.astype(dtype))
     with pytest.raises(ValueError, match="must not be negative"):
         kernels.run_ramps(np.array([2, -1]), np.array([0, 1]), 1, np.uint32)
+
+
+@pytest.mark.parametrize("reduction", ["sum", "min", "max"])
+def test_merge_runs_equals_a_loop_over_the_blocks_in_order(reduction):
+    """Runs of blocks merged into their rows on every core: the same bytes as a sequential float64 loop in block
+    order (the order a row's values are summed in is fixed); rows without runs keep their value."""
+    generator = np.random.default_rng(4)
+    lengths = generator.integers(1, 40, size=3000)
+    rows = np.sort(generator.choice(10000, size=lengths.size, replace=False))
+    starts = np.concatenate(([0], np.cumsum(lengths)))
+    partial = [generator.standard_normal(starts[-1]).astype(np.float32) * 1e3 for _ in range(3)]
+    start = generator.standard_normal((10000, 3))
+    merged = start.copy()
+    kernels.merge_runs(merged, partial, rows, starts, reduction)
+    expected = start.copy()
+    operation = {"sum": lambda a, b: a + b, "min": min, "max": max}[reduction]
+    for run, row in enumerate(rows):
+        for position in range(starts[run], starts[run + 1]):
+            for column in range(3):
+                expected[row, column] = operation(expected[row, column], float(partial[column][position]))
+    assert merged.tobytes() == expected.tobytes()
+    single = start[:, 0].copy()  # a one-dimensional result is one column
+    kernels.merge_runs(single, partial[:1], rows, starts, reduction)
+    assert single.tobytes() == merged[:, 0].copy().tobytes()
+    with pytest.raises(ValueError, match="one entry more than rows"):
+        kernels.merge_runs(merged, partial, rows, starts[:-1], reduction)
+    with pytest.raises(ValueError, match=r"contiguous \(rows, 2\) float64"):
+        kernels.merge_runs(merged, partial[:2], rows, starts, reduction)

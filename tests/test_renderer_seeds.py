@@ -123,7 +123,8 @@ def test_the_seam_counts_every_path_sample_of_every_estimator(scene):
         "coarser pixels": (lambda: scene.sample_pixels(layout, grid, 2, 1, resolution=(5, 4)), 40),
         "explicit lanes": (lambda: scene.sample_pixels(layout, grid, 9, 1, lanes=lanes), 4),
         "statistics": (lambda: scene.sample_pixel_statistics(layout, grid, 1, ("rgb",), spp=2), 2 * pixels),
-        "statistics of lanes": (lambda: scene.sample_pixel_statistics(layout, grid, 1, ("rgb",), lanes=lanes), 4),
+        "statistics of counts": (lambda: scene.sample_pixel_statistics(layout, grid, 1, ("rgb",), counts=np.bincount(
+            lanes[0], minlength=pixels)), 4),
         "gradients": (lambda: scene.sample_gradients(layout, grid, 2, 1, offsets=4),
                       2 * gradient_paths(WIDTH, HEIGHT, 4)),
         "reconnected gradients": (lambda: scene.sample_gradients(layout, grid, 2, 1, shift="reconnection"),

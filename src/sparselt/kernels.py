@@ -112,6 +112,20 @@ def _compiled():
             return out[:count]
 
         @numba.njit(parallel=True, cache=True)
+        def merge_runs(result, column, partial, rows, starts, operation):
+            for run in numba.prange(rows.size):
+                row = rows[run]
+                value = result[row, column]
+                for position in range(starts[run], starts[run + 1]):
+                    if operation == 0:
+                        value += np.float64(partial[position])
+                    elif operation == 1:
+                        value = min(value, np.float64(partial[position]))
+                    else:
+                        value = max(value, np.float64(partial[position]))
+                result[row, column] = value
+
+        @numba.njit(parallel=True, cache=True)
         def block_sums(cells, weights, spp, width, upscale_x, upscale_y, grid_height, block_cells, per_block,
                        out_cells, out_sums, out_counts, filled, stray):
             blocks = filled.size
@@ -336,7 +350,8 @@ def _compiled():
                     "admm_relaxed_update": admm_relaxed_update, "gather": gather, "scatter": scatter, "zero": zero, "squared_magnitude": squared_magnitude,
                     "mark_non_positive": mark_non_positive, "zero_marked": zero_marked,
                     "number_slots": number_slots, "gather_slotted": gather_slotted, "unnumbered": unnumbered,
-                    "block_sums": block_sums, "counting_order": counting_order, "ordered_sums": ordered_sums}
+                    "block_sums": block_sums, "counting_order": counting_order, "ordered_sums": ordered_sums,
+                    "merge_runs": merge_runs}
     return _KERNELS
 
 
@@ -512,6 +527,38 @@ def ordered_sums(targets, channels, bins):
     first, second, third = (np.ascontiguousarray(channel, dtype=np.float32) for channel in channels)
     _compiled()["ordered_sums"](targets, first, second, third, out)
     return out
+
+
+#: The reductions :func:`merge_runs` applies, by name (as :data:`~sparselt.rendering.mitsuba.PIXEL_STATISTICS`).
+MERGE_OPERATIONS = {"sum": 0, "min": 1, "max": 2}
+
+
+def merge_runs(result, partial, rows, starts, reduction):
+    """Merge per-block reductions into per-row ones, in place: each row's blocks one after another, in order.
+
+    ``result`` is float64 ``(rows,)`` or ``(rows, k)``; ``partial`` one
+    float32 array per column of ``result`` (a sequence), one value per
+    block; the blocks come in runs, run ``j`` being blocks ``starts[j] ..
+    starts[j + 1] - 1`` of row ``rows[j]`` (``starts`` has one more entry
+    than ``rows``; each row in one run). ``reduction`` is one of
+    :data:`MERGE_OPERATIONS`: the row's value is summed with (or takes the
+    minimum or maximum of) each of its blocks in order, widened to float64,
+    so the result does not depend on threads; runs go to every core.
+    """
+    operation = MERGE_OPERATIONS[reduction]
+    table = result.reshape(result.shape[0], -1)
+    if table.shape[1] != len(partial) or not np.shares_memory(table, result) or table.dtype != np.float64:
+        raise ValueError(f"result must be a contiguous (rows, {len(partial)}) float64 array, got shape "
+                         f"{result.shape} of {result.dtype}")
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    starts = np.ascontiguousarray(starts, dtype=np.int64)
+    if starts.size != rows.size + 1:
+        raise ValueError(f"starts must have one entry more than rows, got {starts.size} and {rows.size}")
+    for column, values in enumerate(partial):
+        values = np.ascontiguousarray(values, dtype=np.float32)
+        if values.size != starts[-1]:
+            raise ValueError(f"each column of partial must have {starts[-1]} blocks, got {values.size}")
+        _compiled()["merge_runs"](table, column, values, rows, starts, operation)
 
 
 def counting_order(keys, bins):
@@ -710,6 +757,9 @@ def warm_up():
         kernels["mark_non_positive"](out, marks)
         kernels["zero_marked"](out, marks)
     kernels["counting_order"](np.zeros(4, dtype=np.uint32), 4)
+    for columns in (1, 3):
+        merge_runs(np.zeros((4, columns)), [np.zeros(2, dtype=np.float32)] * columns, np.arange(2), np.arange(3),
+                   "sum")
     parts = [np.zeros((3, 3, 1)), np.zeros((3, 2, 1)), np.zeros((2, 3, 1))]
     admm_right_hand_side(parts, [part.copy() for part in parts], [part.copy() for part in parts], 1.0,
                          np.empty((3, 3, 1)))

@@ -125,22 +125,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import kernels
 from ..cell_statistics import variance_from_sums
 from ..filters.axis_aligned import (DIFFUSE_BANDLIMIT, axis_aligned_filter, circle_of_confusion, dof_filter_width,
                                     gaussian_taps, indirect_filter_width, shadow_filter_width)
 from .base import WARM_UP_SEED, Budget, Method, MethodResult, PhaseTimer
 from .preconditions import ThinLens
 from .options import MethodOptions, option
-from ..rendering.mitsuba.pixel_statistics import PIXEL_STATISTICS, REDUCTIONS
+from ..rendering.mitsuba.pixel_statistics import ALLOCATION_BLOCK, PIXEL_STATISTICS, REDUCTIONS
 from .registry import register
 
 
 
-#: Lanes per allocated launch. Larger launches are slower, not faster: at 1024x576 and 64 spp, 2^24 instead of 2^22
-#: made the sampling phase 6.0 -> 7.2 s on checker-dof and 16.4 -> 18.5 s on courtyard (issue 37, tenth session, one
-#: run of 2 seeds each; not isolated: each lane's statistics are evaluated, then copied into padded slots).
-STATISTICS_LIMIT = 1 << 22
 #: A sample's cost beyond its path vertices, in path vertices (the lane's set-up and camera ray), for
 #: :meth:`PixelStatistics.sample_cost`. Measured: the allocated lanes of five of the suite's scenes cost 0.53-1.47
 #: times the same number of uniform lanes; cost ``0.5 + vertices`` predicts 0.47-1.37 (docs/experiments/README.md,
@@ -397,8 +392,9 @@ class _AxisAligned(Method):
     :attr:`pilot_statistics` (those the pilot alone gives: guides),
     :meth:`widths` (the analysis) and :meth:`finish` (the filtered image).
     Every reduction happens in the sampling kernel, for the uniform pilot
-    and for the allocated explicit lanes alike: nothing per sample is copied
-    out of it (:func:`~sparselt.rendering.mitsuba.pixel_statistics.sample_pixel_statistics`).
+    and for the allocated counts alike (whole blocks reduced in the kernel, the rest
+    merged per pixel on the host:
+    :func:`~sparselt.rendering.mitsuba.pixel_statistics.sample_pixel_statistics`).
     """
 
     family = "filter"
@@ -410,6 +406,11 @@ class _AxisAligned(Method):
         # compiled (a one-launch run uses the pilot's), results discarded.
         for rest in ("allocated", "uniform"):
             self._run(context, Budget(spp=4, seed=WARM_UP_SEED), PhaseTimer(), warming=rest)
+        # An allocation's launches of every block size, whichever the small warm-up's allocation held.
+        counts = np.zeros(context.resolution[0] * context.resolution[1], dtype=np.int64)
+        counts[:2] = 2 * ALLOCATION_BLOCK - 1
+        context.scene.sample_pixel_statistics(context.layout, context.grid_shape, WARM_UP_SEED, self.statistics,
+                                              counts=counts, first_sample=2)
 
     def check(self, context):
         """Refuse a context the analysis cannot describe, before any sampling (default: nothing)."""
@@ -537,25 +538,12 @@ class _AxisAligned(Method):
 
     def _draw_allocated(self, context, budget, first_index, extra, statistics, timer):
         """Draw ``extra[p]`` more samples of pixel ``p`` (sample indices from ``first_index``) into ``statistics``."""
-        with timer("other"):
-            pixels_with = np.flatnonzero(extra)
-            launch_of = np.cumsum(extra[pixels_with]) // STATISTICS_LIMIT  # groups of whole pixels
-            groups = np.split(pixels_with, np.flatnonzero(np.diff(launch_of)) + 1) if pixels_with.size else []
-        nonfinite = 0
-        for group in groups:
-            with timer("other"):
-                counts = extra[group]
-                pixel_ids = kernels.run_ramps(counts, group, 0, np.uint32)
-                # Sample indices first_index, first_index + 1, ... within each pixel.
-                sample_ids = kernels.run_ramps(counts, np.full(counts.size, first_index), 1, np.uint32)
-            with timer("sampling"):
-                reduced, bad = context.scene.sample_pixel_statistics(
-                    context.layout, context.grid_shape, budget.seed, self.statistics, lanes=(pixel_ids, sample_ids))
-            nonfinite += bad
-            with timer("integration"):
-                group_counts = np.zeros(statistics.counts.size, dtype=np.int64)
-                group_counts[group] = counts
-                statistics.add(reduced, group_counts)
+        with timer("sampling"):
+            reduced, nonfinite = context.scene.sample_pixel_statistics(
+                context.layout, context.grid_shape, budget.seed, self.statistics, counts=extra,
+                first_sample=first_index)
+        with timer("integration"):
+            statistics.add(reduced, extra)
         return nonfinite
 
     def widths(self, context, options, statistics):  # pragma: no cover - interface

@@ -59,6 +59,28 @@ def item_lanes(count, spp, seed, *, first=0, stream=0, items=None, order=None, f
     return item, seeded_generator(item, sample_index, seed, stream), lane_count
 
 
+def unit_lanes(lane_count, block, block_count, items, first_samples, seed, *, stream=0):
+    """Lanes of ``block_count`` blocks of ``block`` consecutive samples each, then of single samples.
+
+    Unit ``u`` (a block, or after the blocks one lane) draws item
+    ``items[u]``'s samples from ``first_samples[u]`` (``mi.UInt32``
+    tables); lane ``i < block * block_count`` is sample ``i % block`` of
+    block ``i // block``, lane ``block * block_count + j`` is unit
+    ``block_count + j``. Seeded exactly as :func:`item_lanes` seeds (item,
+    sample index); sizes are opaque: one kernel for every layout. Returns
+    ``(item, generator)``.
+    """
+    mi, dr = modules()
+    index = dr.arange(mi.UInt32, int(lane_count))
+    size = dr.opaque(mi.UInt32, int(block))
+    blocked = dr.opaque(mi.UInt32, int(block) * int(block_count))
+    in_blocks = index < blocked
+    unit = dr.select(in_blocks, index // size, dr.opaque(mi.UInt32, int(block_count)) + index - blocked)
+    item = dr.gather(mi.UInt32, items, unit)
+    sample_index = dr.gather(mi.UInt32, first_samples, unit) + dr.select(in_blocks, index % size, 0)
+    return item, seeded_generator(item, sample_index, seed, stream)
+
+
 def seeded_generator(item, sample_index, seed, stream):
     """The PCG32 of each lane, seeded with a TEA hash of (item, sample index, 32-bit ``seed``) on ``stream``."""
     mi, dr = modules()

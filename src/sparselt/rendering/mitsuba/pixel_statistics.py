@@ -96,21 +96,20 @@ def shadow_slope(recorded):
     return dr.select(blocked, distance / dr.select(blocked, occluder, 1.0) - 1.0, 0.0), blocked
 
 
-def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None, lanes=None, halves=False,
+def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None, counts=None, halves=False,
                             first_sample=0):
     """Per-pixel reductions of per-sample quantities (:data:`PIXEL_STATISTICS`), reduced where they are drawn.
 
     The samples are exactly those of
     :func:`~sparselt.rendering.mitsuba.pixels.sample_pixels` (the same
-    random numbers): ``spp`` per film pixel, or the explicit ``lanes``
-    ``(pixels, sample_indices)`` sorted by pixel. Nothing per sample leaves
-    the kernel: a uniform pass reduces each pixel's ``spp`` consecutive
-    lanes with a block reduction; an explicit-lanes pass scatters each lane
-    into its pixel's blocks of :data:`EXPLICIT_BLOCK` slots (padded with the
-    reduction's identity), block-reduces them in the kernel and merges a
-    pixel's few blocks on the host (:func:`explicit_slots`). Both are in a
-    fixed order: the same seed gives the same bytes (atomic additions would
-    not).
+    random numbers): ``spp`` per film pixel, or ``counts[p]`` of pixel
+    ``p`` (an allocation). Nothing per sample leaves the kernel: a uniform
+    pass reduces each pixel's ``spp`` consecutive lanes with a block
+    reduction; an allocation is drawn as blocks of consecutive samples of
+    one pixel, each of a power-of-two size (:func:`allocation_blocks`): one
+    launch per size, block-reduced in the kernel, a pixel's few blocks
+    merged on the host. Both are in a fixed order: the same seed gives the
+    same bytes (atomic additions would not).
 
     Parameters
     ----------
@@ -122,13 +121,13 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     names : tuple of str
         Keys of :data:`PIXEL_STATISTICS`; only these are computed.
     spp : int, optional
-        Samples per pixel of every film pixel (one of ``spp``, ``lanes``).
-    lanes : tuple of two int arrays, optional
-        ``(pixels, sample_indices)``, sorted by pixel.
+        Samples per pixel of every film pixel (one of ``spp``, ``counts``).
+    counts : array of int, optional
+        Samples of each film pixel (row-major, ``width * height`` values,
+        non-negative; 0: none).
     first_sample : int, optional
-        A uniform pass's sample indices start here (default 0): ``spp``
-        samples more of every pixel after the ``first_sample`` drawn
-        before, the samples explicit lanes with those indices would draw.
+        Sample indices start here (default 0): ``spp`` (or ``counts[p]``)
+        samples more of every pixel after the ``first_sample`` drawn before.
     halves : bool, optional
         A uniform pass only (even ``spp``): reduce each pixel's first and
         second ``spp / 2`` samples apart, in the same launch (the block
@@ -147,121 +146,139 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     Raises
     ------
     ValueError
-        An unknown name, neither or both of ``spp`` and ``lanes``, lanes
-        not sorted by pixel, ``halves`` with lanes or an odd ``spp``, or a
-        ``first_sample`` with lanes.
+        An unknown name, neither or both of ``spp`` and ``counts``, counts
+        of another size than the film's pixels or negative, ``halves`` with
+        counts or an odd ``spp``.
     """
     unknown = sorted(set(names) - set(PIXEL_STATISTICS))
     if unknown:
         raise ValueError(f"unknown pixel statistics {unknown}; choose from {', '.join(PIXEL_STATISTICS)}")
-    if (spp is None) == (lanes is None):
-        raise ValueError("give exactly one of spp and lanes")
-    if halves and (lanes is not None or int(spp) % 2):
+    if (spp is None) == (counts is None):
+        raise ValueError("give exactly one of spp and counts")
+    if halves and (counts is not None or int(spp) % 2):
         raise ValueError(f"halves needs a uniform pass of an even spp, not spp={spp} "
-                         f"{'with explicit lanes' if lanes is not None else ''}".rstrip())
-    if lanes is not None and first_sample:
-        raise ValueError(f"first_sample applies to a uniform pass, got first_sample={first_sample} with explicit "
-                         f"lanes (their sample indices are given)")
+                         f"{'with counts' if counts is not None else ''}".rstrip())
     pixels = scene.width * scene.height
-    if lanes is not None:
-        slots = explicit_slots(lanes[0], EXPLICIT_BLOCK)
+    if counts is not None:
+        counts = np.asarray(counts)
+        if counts.size != pixels or not np.issubdtype(counts.dtype, np.integer) or np.any(counts < 0):
+            raise ValueError(f"counts must be {pixels} non-negative integers (one per film pixel), got "
+                             f"{counts.size} of {counts.dtype}" + (" with negatives" if np.any(counts < 0) else ""))
+        layouts = allocation_layouts(counts.reshape(-1), int(first_sample), lane_limit=LANE_LIMIT)
 
-    def work(folded_seed):
+    def drawn_pass(folded_seed, block, lane_arguments):
+        """One launch (its lanes :func:`~sparselt.rendering.mitsuba.pixels.pixel_lanes`'s ``lane_arguments``):
+        the per-sample channels, each ``block`` consecutive ones reduced, and the kept lanes' count."""
         mi, dr = modules()
-        _, samples, _ = pixel_lanes(layout, grid_shape, spp, folded_seed, 0, pixels, (scene.width, scene.height),
-                                    lanes, cell=False, first_sample=None if lanes is not None else first_sample)
+        _, samples, _ = pixel_lanes(layout, grid_shape, seed=folded_seed, film_size=(scene.width, scene.height),
+                                    cell=False, **lane_arguments)
         recorded = {}
         value, finite = zero_nonfinite(path_contribution(scene, layout, samples, recorded))
         quantities = {name: statistic_quantity(name, value, recorded, finite) for name in names}
         flat = {name: [quantity.x, quantity.y, quantity.z] if dr.size_v(quantity) == 3 else [quantity]
                 for name, quantity in quantities.items()}
-        operations = {"sum": dr.ReduceOp.Add, "min": dr.ReduceOp.Min, "max": dr.ReduceOp.Max}
-        if lanes is None:
-            block = int(spp) // 2 if halves else int(spp)
-        else:  # each lane into its slot: a pixel's lanes fill whole blocks, the rest of a block is the identity
-            block = slots.block
-            slot = to_device(mi.UInt32, slots.slot, np.uint32)
-            padded = {}
-            for name, channels in flat.items():
-                identity = REDUCTIONS[PIXEL_STATISTICS[name]][1]
-                padded[name] = [dr.full(mi.Float, identity, slots.block_count * block) for _ in channels]
-                # Evaluated buffers, not literals: a literal of the launch's own size would fold into the kernel,
-                # whose code (and cache entry) would then depend on whether the padding happens to add nothing.
-                dr.make_opaque(*padded[name])
-                for target, channel in zip(padded[name], channels):
-                    dr.scatter(target, channel, slot)
-            flat = padded
         dr.eval(finite, *[channel for channels in flat.values() for channel in channels])  # the one path kernel
         nonfinite = dr.count(~finite)
+        operations = {"sum": dr.ReduceOp.Add, "min": dr.ReduceOp.Min, "max": dr.ReduceOp.Max}
         reduced = {name: [dr.block_reduce(operations[PIXEL_STATISTICS[name]], channel, block, mode="evaluated")
-                          for channel in channels] for name, channels in flat.items()}
+                          if block else channel for channel in channels] for name, channels in flat.items()}
         dr.eval(nonfinite, *[channel for channels in reduced.values() for channel in channels])
-        results = {name: stacked(channels) for name, channels in reduced.items()}
-        if lanes is not None:
-            results = {name: slots.merge(value, PIXEL_STATISTICS[name], pixels) for name, value in results.items()}
-        if halves:  # blocks alternate between a pixel's first and second half
-            results = tuple({name: value[part::2] for name, value in results.items()} for part in (0, 1))
-        return results, int(nonfinite[0])
+        return flat, reduced, int(nonfinite[0])
 
-    drawn = pixels * int(spp) if lanes is None else int(np.size(lanes[0]))
+    def work(folded_seed):
+        mi, _ = modules()
+        if counts is None:
+            block = int(spp) // 2 if halves else int(spp)
+            _, reduced, nonfinite = drawn_pass(folded_seed, block, {"spp": int(spp), "first_pixel": 0,
+                                                                    "pixel_count": pixels, "first_sample": first_sample})
+            results = {name: stacked(channels) for name, channels in reduced.items()}
+            if halves:  # blocks alternate between a pixel's first and second half
+                results = tuple({name: value[part::2] for name, value in results.items()} for part in (0, 1))
+            return results, nonfinite
+        results = {name: np.full((pixels, 3) if name in VECTOR_STATISTICS else pixels,
+                                 REDUCTIONS[PIXEL_STATISTICS[name]][1]) for name in names}
+        nonfinite = 0
+        for part in layouts:  # whole pixels each: the same bytes however the launches split
+            tables = [np.concatenate(pair) for pair in ((part.block_pixels, part.single_pixels),
+                                                        (part.block_first_samples, part.single_samples))]
+            # Dr.Jit compiles a launch of one lane, or a gather from one element, as other kernels (not warmed):
+            # the last unit is listed twice (and a lone single lane drawn twice, the copy dropped).
+            tables = [to_device(mi.UInt32, np.append(table, table[-1:]), np.uint32) for table in tables]
+            blocked = part.block * part.block_pixels.size
+            lane_count = blocked + part.single_pixels.size
+            flat, reduced, bad = drawn_pass(folded_seed, part.block if blocked else 0, {
+                "spp": part.block, "first_pixel": 0, "pixel_count": 0,
+                "units": (max(lane_count, 2), part.block, part.block_pixels.size, *tables)})
+            nonfinite += bad if lane_count > 1 else bad // 2
+            for name in names:  # a pixel's blocks, then its single lanes
+                kernels.merge_runs(results[name], [np.asarray(channel)[:part.block_pixels.size]
+                                                   for channel in reduced[name]], *part.block_runs,
+                                   PIXEL_STATISTICS[name])
+                kernels.merge_runs(results[name], [np.asarray(channel)[blocked:lane_count] for channel in flat[name]],
+                                   *part.single_runs, PIXEL_STATISTICS[name])
+        return results, nonfinite
+
+    drawn = pixels * int(spp) if counts is None else int(counts.sum())
     return launch(work, seed, path_samples=drawn)
 
 
-#: Slots per block of an explicit-lanes pass (:func:`sample_pixel_statistics`): a pixel's lanes fill
-#: ``ceil(count / EXPLICIT_BLOCK)`` blocks, reduced in the kernel; the host merges each pixel's blocks.
-EXPLICIT_BLOCK = 16
+#: An allocation's pass (:func:`allocation_layouts`) draws a pixel's samples in blocks of this many, reduced in the
+#: kernel, and the rest one lane each, merged on the host.
+ALLOCATION_BLOCK = 16
+#: The most lanes one launch of an allocation's pass holds (every per-sample channel is evaluated once). Larger
+#: launches were slower, not faster: at 1024x576 and 64 spp, 2^24 instead of 2^22 made the sampling phase 6.0 -> 7.2 s
+#: on checker-dof and 16.4 -> 18.5 s on courtyard (issue 37, tenth session, one run of 2 seeds each, when lanes were
+#: scattered into padded slots).
+LANE_LIMIT = 1 << 22
+#: Statistics with three channels.
+VECTOR_STATISTICS = frozenset({"rgb", "rgb_squared", "diffuse_rgb", "diffuse_rgb_squared", "albedo", "normal",
+                               "direct_rgb"})
 
 
-class ExplicitSlots:
-    """Where each lane of an explicit-lanes pass goes: whole blocks per pixel (see :func:`explicit_slots`).
+class AllocationLayout:
+    """The lanes of one launch of an allocation's pass (see :func:`allocation_layouts`).
 
     Attributes
     ----------
-    slot : ndarray of uint32
-        Each lane's slot in the padded array (``block_count * block`` slots).
     block : int
-        Slots per block.
-    block_count : int
-    owners : ndarray of int64
-        The pixel of each run of lanes (in lane order).
-    first_blocks : ndarray of int64
-        Each run's first block.
+        Samples per block.
+    block_pixels, block_first_samples : ndarray of int64
+        Each block's film pixel and first sample index, in pixel order.
+    single_pixels, single_samples : ndarray of int64
+        Each single lane's film pixel and sample index, in pixel order.
+    block_runs, single_runs : tuple of two int64 arrays
+        ``(pixels, starts)``: the pixels that have blocks (single lanes)
+        and where each one's run of them starts, then their total
+        (:func:`~sparselt.kernels.merge_runs`).
     """
 
-    def __init__(self, slot, block, block_count, owners, first_blocks):
-        self.slot, self.block, self.block_count = slot, block, block_count
-        self.owners, self.first_blocks = owners, first_blocks
-
-    def merge(self, partial, reduction, pixels):
-        """Per-pixel reductions from the per-block ones ``partial`` (``(block_count, ...)``), over ``pixels``."""
-        operation, identity = REDUCTIONS[reduction]
-        result = np.full((pixels,) + partial.shape[1:], identity)
-        if self.owners.size:
-            result[self.owners] = operation.reduceat(partial, self.first_blocks, axis=0)
-        return result
+    def __init__(self, block, pixels, full, rest, first_sample):
+        self.block = int(block)
+        self.block_pixels = kernels.run_ramps(full, pixels, 0, np.int64)
+        self.block_first_samples = kernels.run_ramps(full, np.full(pixels.size, int(first_sample)), block, np.int64)
+        self.single_pixels = kernels.run_ramps(rest, pixels, 0, np.int64)
+        self.single_samples = kernels.run_ramps(rest, first_sample + full * block, 1, np.int64)
+        self.block_runs, self.single_runs = (
+            (pixels[runs > 0], np.concatenate(([0], np.cumsum(runs[runs > 0])))) for runs in (full, rest))
 
 
-def explicit_slots(pixel_ids, block):
-    """The padded block layout of explicit lanes ``pixel_ids`` (sorted by pixel): an :class:`ExplicitSlots`.
+def allocation_layouts(counts, first_sample=0, block=ALLOCATION_BLOCK, lane_limit=LANE_LIMIT):
+    """An allocation's samples as launches of whole pixels: a list of :class:`AllocationLayout`.
 
-    Lane ``i`` of a run of ``n`` lanes of one pixel starting at lane ``s``
-    goes to slot ``b * block + (i - s)``, ``b`` the run's first block; the
-    run owns ``ceil(n / block)`` blocks. A block reduction then sums (or
-    takes the minimum of) each block's lanes in a fixed order, and a pixel's
-    blocks are merged on the host in block order.
-
-    Raises
-    ------
-    ValueError
-        ``pixel_ids`` not sorted (a pixel's lanes must be consecutive).
+    Pixel ``p``'s samples ``first_sample .. first_sample + counts[p] - 1``
+    are ``counts[p] // block`` blocks of ``block`` consecutive samples
+    (reduced in the kernel by one block reduction over the launch) and
+    ``counts[p] % block`` single lanes after every block of the launch
+    (read back and merged on the host): one launch for any allocation, no
+    lane spent on padding, nothing scattered. Pixels go to launches whole,
+    in pixel order, a new launch where the running count of lanes passes a
+    multiple of ``lane_limit`` (so at most ``lane_limit`` plus one pixel's
+    lanes each); pixels without samples are in none.
     """
-    pixel_ids = np.ascontiguousarray(pixel_ids, dtype=np.int64)
-    if pixel_ids.size and np.any(pixel_ids[1:] < pixel_ids[:-1]):
-        raise ValueError("explicit lanes must be sorted by pixel")
-    starts = np.flatnonzero(np.concatenate(([True], pixel_ids[1:] != pixel_ids[:-1]))) if pixel_ids.size else \
-        np.zeros(0, dtype=np.int64)
-    counts = np.diff(np.append(starts, pixel_ids.size))
-    blocks = -(-counts // block)
-    first_blocks = np.cumsum(blocks) - blocks
-    slot = kernels.run_ramps(counts, first_blocks * block, 1, np.uint32)
-    return ExplicitSlots(slot, int(block), int(blocks.sum()), pixel_ids[starts], first_blocks)
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    drawn = np.flatnonzero(counts)
+    launch_of = (np.cumsum(counts[drawn]) - 1) // max(1, int(lane_limit))
+    layouts = []
+    for group in np.split(drawn, np.flatnonzero(np.diff(launch_of)) + 1) if drawn.size else []:
+        layouts.append(AllocationLayout(block, group, counts[group] // block, counts[group] % block, first_sample))
+    return layouts

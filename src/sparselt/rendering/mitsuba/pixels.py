@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .integrand import AUXILIARY_QUANTITIES, path_contribution, zero_nonfinite
-from .lanes import explicit_lanes, item_lanes, pss_vector
+from .lanes import explicit_lanes, item_lanes, pss_vector, unit_lanes
 from .launch import launch
 from .readback import count_false, rgb_array, to_numpy
 from .runtime import modules
@@ -101,16 +101,20 @@ def sample_pixels(scene, layout, grid_shape, spp, seed, first_pixel=0, pixel_cou
 
 
 def pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count, film_size, explicit=None, *, cell=True,
-                first_sample=None):
+                first_sample=None, units=None):
     """The PSS vectors of pixel samples (see :func:`sample_pixels`): ``(pixel, samples, cell)`` per lane.
 
     ``explicit``, ``(pixels, sample_indices)``, draws exactly those samples
-    instead of ``spp`` per pixel of the run; ``seed`` is the 32-bit seed;
-    ``cell=False``: no grid cell (None); ``first_sample``: the run's sample
-    indices start there (:func:`~sparselt.rendering.mitsuba.lanes.item_lanes`).
+    instead of ``spp`` per pixel of the run; ``units``, the arguments of
+    :func:`~sparselt.rendering.mitsuba.lanes.unit_lanes` but the seed, draws
+    blocks and single samples of listed pixels; ``seed`` is the 32-bit seed; ``cell=False``: no grid cell
+    (None); ``first_sample``: the run's sample indices start there
+    (:func:`~sparselt.rendering.mitsuba.lanes.item_lanes`).
     """
     mi, dr = modules()
-    if explicit is None:
+    if units is not None:
+        pixel, generator = unit_lanes(*units, seed)
+    elif explicit is None:
         pixel, generator, _ = item_lanes(pixel_count, spp, seed, first=first_pixel, first_sample=first_sample)
     else:
         pixel, generator = explicit_lanes(explicit[0], explicit[1], seed)

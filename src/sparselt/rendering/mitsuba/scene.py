@@ -126,10 +126,10 @@ class MitsubaScene:
         return sample_pixels(self, layout, grid_shape, spp, seed, first_pixel=first_pixel, pixel_count=pixel_count,
                              resolution=resolution, auxiliary=auxiliary, lanes=lanes, cells=cells)
 
-    def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, lanes=None, halves=False,
+    def sample_pixel_statistics(self, layout, grid_shape, seed, names, *, spp=None, counts=None, halves=False,
                                 first_sample=0):
         """:func:`sparselt.rendering.mitsuba.pixel_statistics.sample_pixel_statistics` on this scene."""
-        return sample_pixel_statistics(self, layout, grid_shape, seed, names, spp=spp, lanes=lanes, halves=halves,
+        return sample_pixel_statistics(self, layout, grid_shape, seed, names, spp=spp, counts=counts, halves=halves,
                                        first_sample=first_sample)
 
     def sample_gradients(self, layout, grid_shape, spp, seed, *, offsets=4, shift="replay", halves=False,
