@@ -222,14 +222,11 @@ class PixelStatistics:
         self._values, self._counts = {}, {}
 
     def add(self, statistics, counts):
-        """Merge one pass: ``statistics`` name -> per-pixel reduction, ``counts`` its samples per pixel.
-
-        The pass's arrays are handed over: an owned float64 array may be kept
-        and later merged into in place (the caller reads it no more)."""
+        """Merge one pass: ``statistics`` name -> per-pixel reduction, ``counts`` its samples per pixel."""
         counts = np.broadcast_to(np.asarray(counts, dtype=np.int64), self.counts.shape)
         for name, value in statistics.items():
-            if name not in self._values:  # a copy unless the pass's own float64 array can be kept
-                self._values[name] = np.array(value, dtype=np.float64, copy=None if _owned(value) else True)
+            if name not in self._values:
+                self._values[name] = np.array(value, dtype=np.float64)
                 self._counts[name] = counts.copy()
                 continue
             merge, _ = REDUCTIONS[PIXEL_STATISTICS[name]]
@@ -279,11 +276,6 @@ class PixelStatistics:
         """Each pixel's expected cost per sample in path vertices, ``FIXED_SAMPLE_COST`` plus the mean number of
         vertices its samples reached (``path_vertices``, the pilot's), smoothed over 5x5 pixels."""
         return _box_mean(FIXED_SAMPLE_COST + self.mean("path_vertices"))
-
-
-def _owned(value):
-    """Whether ``value`` is a float64 array owning its memory (one a pass handed over, not a view of another)."""
-    return isinstance(value, np.ndarray) and value.dtype == np.float64 and value.flags.owndata and value.flags.writeable
 
 
 def _box_mean(image):

@@ -53,11 +53,6 @@ def rgb_array(channels):
 
 
 def stacked(channels):
-    """Evaluated Dr.Jit channels as float64 ``(n,)`` (one) or ``(n, k)`` (several), converted in one copy each."""
-    arrays = [np.asarray(channel) for channel in channels]
-    if len(arrays) == 1:
-        return arrays[0].astype(np.float64)
-    out = np.empty((arrays[0].size, len(arrays)))
-    for column, array in enumerate(arrays):
-        out[:, column] = array
-    return out
+    """Evaluated Dr.Jit channels as float64 ``(n,)`` (one) or ``(n, 3)`` (three)."""
+    arrays = [np.asarray(channel, dtype=np.float64) for channel in channels]
+    return arrays[0] if len(arrays) == 1 else np.stack(arrays, axis=1)
