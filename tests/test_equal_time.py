@@ -12,6 +12,7 @@ import pytest
 
 from sparselt.experiments.equal_time import (
     add_equal_time_columns,
+    baseline_from_record,
     correction_uncertainty,
     equal_quality_speedup,
     fit_baseline,
@@ -441,3 +442,20 @@ def test_the_ladder_climbs_until_pt_reaches_the_best_methods_error():
     capped = ladder_search(run_rung, [0.15], smallest_budget=8, maximum_spp=64,
                            rung_error=lambda spp: 1.0 / spp, target_error=0.01)
     assert capped["spps"][-1] == 64 and capped["capped"]
+
+
+def test_the_fit_rebuilt_from_its_record_reads_pt_as_the_verdicts_did():
+    """compare.json's pt_fit record rebuilds a fit whose corrected, held curve and its inverse are the fit's own
+    (the quality-vs-time figure draws this curve, not a copy of it); no record, or a seed without a fit: None."""
+    rows = bent_pt_rows(lambda spp: 1.6 if spp == 128 else 1.0, noise=0.03)
+    fit = fit_baseline(rows, "pt")
+    rebuilt = baseline_from_record(fit_record(fit))
+    grid = np.geomspace(8, 256, 50)
+    assert np.array_equal(rebuilt.mean_value("relmse", grid), fit.mean_value("relmse", grid))
+    targets = fit.mean_value("relmse", np.array([12.0, 100.0]))
+    assert np.array_equal(rebuilt.spp_reaching("relmse", targets)[0], fit.spp_reaching("relmse", targets)[0])
+    assert rebuilt.exponent("relmse") == fit.exponent("relmse") and rebuilt.spp_range == fit.spp_range
+    assert baseline_from_record(None) is None
+    record = fit_record(fit)
+    record["relmse_per_seed"]["1"]["c"] = None
+    assert baseline_from_record(record) is None

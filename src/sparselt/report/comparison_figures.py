@@ -82,21 +82,18 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
         yerr = np.where(np.isfinite(low), [relmse - np.maximum(low, relmse * 1e-3), high - relmse], 0.0)
         right.errorbar(seconds, relmse, xerr=bars, yerr=yerr, marker="o", color=line.get_color(), label=method,
                        capsize=2)
-    if fit and fit.get(f"{metric}_per_seed"):
-        spps = np.geomspace(fit["spp_range"][0], fit["spp_range"][1], 64)
-        seeds = fit[f"{metric}_per_seed"]
-        c = np.mean([value["c"] for value in seeds.values()])
-        if c is not None:
-            floor = np.mean([value["floor"] for value in seeds.values()])
-            exponent = fit.get(f"{metric}_exponent", 1.0)
-            power = "spp" if exponent == 1.0 else f"spp^{exponent:g}"
-            curve = c / spps ** exponent + floor
-            rungs = fit.get(f"{metric}_rung_correction")
-            if rungs:  # the fit as the verdicts read it: times the rungs' mean measured/fitted, non-increasing
-                curve = np.minimum.accumulate(curve * np.interp(np.log(spps), [np.log(rung["spp"]) for rung in rungs],
-                                                                [rung["mean"] for rung in rungs]))
-            right.plot(fit["intercept_seconds"] + fit["seconds_per_spp"] * spps, curve, "k--", lw=1,
-                       label=f"PT fit: {c:.3g}/{power} + {floor:.2g}" + (", rung-corrected" if rungs else ""))
+    from ..experiments.equal_time import baseline_from_record  # the protocol's own reading (report sits below it)
+
+    baseline = baseline_from_record(fit) if fit and fit.get(f"{metric}_per_seed") else None
+    if baseline is not None:
+        spps = np.geomspace(*baseline.spp_range, 64)
+        c, floor = baseline.mean_fit(metric)
+        exponent = baseline.exponent(metric)
+        power = "spp" if exponent == 1.0 else f"spp^{exponent:g}"
+        corrected = metric in baseline.corrections
+        # The fit as the verdicts read it: times the rungs' mean measured/fitted, held non-increasing.
+        right.plot(baseline.intercept + baseline.slope * spps, baseline.mean_value(metric, spps), "k--", lw=1,
+                   label=f"PT fit: {c:.3g}/{power} + {floor:.2g}" + (", rung-corrected" if corrected else ""))
     left.set(xscale="log", xlabel="seconds (median of repeats, kernels warm)", ylabel="SSIM",
              title=f"{scene}: SSIM vs time")
     right.set(xscale="log", yscale="log", xlabel="seconds (median of repeats, kernels warm)",
