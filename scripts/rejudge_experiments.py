@@ -10,8 +10,9 @@ per-pixel images keep their untrimmed relMSE as the headline metric.
 
 A folder with the guided methods' ``table_6.md`` (its PT times at their quality) gets it again.
 A suite whose scenes are re-judged gets its ``suite.csv``, ``aggregate.csv``/``.md`` and ``speedups.png`` again
-(:func:`sparselt.experiments.suite_report.write_suite_tables`, the bootstrap's recorded seed); pages (``index.html``)
-stay as measured.
+(:func:`sparselt.experiments.suite_report.write_suite_tables`, the bootstrap's recorded seed). A comparison's page
+(``index.html``) is written again with its tables and verdicts, noting the re-judging; its figures and a suite's own
+page stay as measured.
 
 Usage: ``.venv/bin/python scripts/rejudge_experiments.py [--check] [--folders a,b]`` (``--check`` writes nothing and
 exits 1 if a folder would change; ``--folders`` re-judges only those folders of ``docs/experiments`` and what they
@@ -54,6 +55,20 @@ def rejudge(folder):
             files["table_6.md"] = markdown_document(*guided)
             if (folder / "table_6.csv").exists():
                 files["table_6.csv"] = guided[0].csv()
+    page = folder / "index.html"
+    if page.exists() and "<title>sparselt compare:" in page.read_text():  # its tables and verdicts, judged again
+        from sparselt.report.comparison import comparison_section
+        from sparselt.report.page import page_html
+
+        scene = record["config"]["scene"]
+        section = comparison_section(folder, "", rows, report_config(record["config"]), scene,
+                                     methods=record["methods"], summary=summary,
+                                     epsilon=record.get("relmse_epsilon", 0.01))
+        files["index.html"] = page_html(
+            folder, f"sparselt compare: {scene}", [section], record["provenance"],
+            note="Re-judged by scripts/rejudge_experiments.py (the commit that last changed this page says when): "
+                 "the tables and verdicts are the equal-time protocol's of that commit; the measurements, images and "
+                 "figures are the run's (provenance below).")
     old = read_records_csv(folder / "summary.csv")
     return files, record, old, summary, rows, fit
 

@@ -58,12 +58,13 @@ def reference_spp(record):
 
 
 def report_config(config):
-    """What the report's tables read of a comparison's configuration (``kind``, ``shape``,
-    ``output_resolution``), from the ``config`` of its ``compare.json`` record: for tables rebuilt from a
-    folder (:mod:`sparselt.report.comparison`'s ``table_6``, ``table_8``)."""
+    """What the report reads of a comparison's configuration (``kind``, ``shape``, ``output_resolution``,
+    ``seeds``, ``timing_repeats``), from the ``config`` of its ``compare.json`` record: for tables and pages
+    rebuilt from a folder (:mod:`sparselt.report.comparison`'s ``table_6``, ``table_8``, ``comparison_section``)."""
     from types import SimpleNamespace
 
-    return SimpleNamespace(kind=config["kind"], shape=config["shape"], output_resolution=tuple(config["resolution"]))
+    return SimpleNamespace(kind=config["kind"], shape=config["shape"], output_resolution=tuple(config["resolution"]),
+                           seeds=config.get("seeds"), timing_repeats=config.get("timing_repeats"))
 
 
 def _comparison(folder):
