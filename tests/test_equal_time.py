@@ -12,7 +12,6 @@ import pytest
 
 from sparselt.experiments.equal_time import (
     add_equal_time_columns,
-    baseline_from_record,
     correction_uncertainty,
     equal_quality_speedup,
     fit_baseline,
@@ -444,18 +443,20 @@ def test_the_ladder_climbs_until_pt_reaches_the_best_methods_error():
     assert capped["spps"][-1] == 64 and capped["capped"]
 
 
-def test_the_fit_rebuilt_from_its_record_reads_pt_as_the_verdicts_did():
-    """compare.json's pt_fit record rebuilds a fit whose corrected, held curve and its inverse are the fit's own
-    (the quality-vs-time figure draws this curve, not a copy of it); no record, or a seed without a fit: None."""
-    rows = bent_pt_rows(lambda spp: 1.6 if spp == 128 else 1.0, noise=0.03)
+
+def test_the_quality_figure_draws_pt_as_the_verdicts_read_it():
+    """The dashed PT curve of the quality-vs-time figure is the fit's corrected, held curve (mean_value) against
+    its time line: a ladder with one rung 60% above the line shows that rung's measured mean, not the line."""
+    from sparselt.report.comparison_figures import quality_figure
+    from sparselt.report.plotting import pyplot
+
+    rows = bent_pt_rows(lambda spp: 1.6 if spp == 128 else 1.0)
     fit = fit_baseline(rows, "pt")
-    rebuilt = baseline_from_record(fit_record(fit))
-    grid = np.geomspace(8, 256, 50)
-    assert np.array_equal(rebuilt.mean_value("relmse", grid), fit.mean_value("relmse", grid))
-    targets = fit.mean_value("relmse", np.array([12.0, 100.0]))
-    assert np.array_equal(rebuilt.spp_reaching("relmse", targets)[0], fit.spp_reaching("relmse", targets)[0])
-    assert rebuilt.exponent("relmse") == fit.exponent("relmse") and rebuilt.spp_range == fit.spp_range
-    assert baseline_from_record(None) is None
-    record = fit_record(fit)
-    record["relmse_per_seed"]["1"]["c"] = None
-    assert baseline_from_record(record) is None
+    figure = quality_figure(rows, "bent", 0.01, None, fit)  # no summary: the rows' means, the untrimmed relMSE
+    line = next(line for axis in figure.axes for line in axis.get_lines() if line.get_label().startswith("PT fit"))
+    spps = (np.asarray(line.get_xdata()) - fit.intercept) / fit.slope
+    assert np.allclose(line.get_ydata(), fit.mean_value("relmse", spps), rtol=1e-9)
+    assert "rung-corrected" in line.get_label()
+    measured = np.mean([row["relmse"] for row in rows if row["spp"] == 128])
+    assert fit.mean_value("relmse", 128) == pytest.approx(measured, rel=1e-3)
+    pyplot().close(figure)

@@ -560,7 +560,7 @@ class ComparisonExperiment(Experiment):
         record["pt_fit"] = fit_record(fit)
         report_start = time.perf_counter()
         write_comparison_outputs(folder, rows, self.measure.image, config, self.setup.spec.name, methods=record["methods"],
-                                 summary=summary, fit=record["pt_fit"], epsilon=RELMSE_EPSILON,
+                                 summary=summary, fit=fit, epsilon=RELMSE_EPSILON,
                                  image_of=image_of, provenance=environment_record(), columns=RESULT_COLUMNS + EXTRA_COLUMNS)
         report_seconds = time.perf_counter() - report_start
         total = time.perf_counter() - self.started

@@ -939,34 +939,6 @@ def fit_record(fit):
     return record
 
 
-def baseline_from_record(record):
-    """The :class:`BaselineFit` a :func:`fit_record` describes, as far as the record keeps it: the seeds' fits,
-    the exponents, the local corrections, the time line and the ladder's range, so that
-    :meth:`BaselineFit.mean_value` and :meth:`BaselineFit.spp_reaching` read PT as the verdicts did (the
-    quality-vs-time figure draws it from ``compare.json``). SSIM and FLIP ladders are not recorded (empty); the
-    ladder's reach in seconds is the time line's at its ends. None for a record without fits (or None).
-    """
-    if not record:
-        return None
-    metrics = [key[:-len("_per_seed")] for key in record if key.endswith("_per_seed")]
-    fits = {metric: {int(seed): (value["c"], value["floor"]) for seed, value in record[f"{metric}_per_seed"].items()}
-            for metric in metrics}
-    if not fits or any(c is None for entries in fits.values() for c, _ in entries.values()):
-        return None
-    lowest, highest = (float(value) for value in record["spp_range"])
-    intercept, slope = float(record["intercept_seconds"]), float(record["seconds_per_spp"])
-    corrections = {metric: tuple(np.array([entry[key] for entry in record[f"{metric}_rung_correction"]], dtype=float)
-                                 for key in ("spp", "mean", "standard_error"))
-                   for metric in metrics if record.get(f"{metric}_rung_correction")}
-    return BaselineFit(intercept=intercept, slope=slope, time_residual=float(record.get("time_relative_residual", 0.0)),
-                       fits=fits, ssim={}, spp_range=(lowest, highest), reached_seconds=intercept + slope * highest,
-                       lowest_seconds=intercept + slope * lowest,
-                       residuals={metric: record.get(f"{metric}_relative_residual") for metric in metrics},
-                       exponents={metric: float(record[f"{metric}_exponent"]) for metric in metrics
-                                  if f"{metric}_exponent" in record},
-                       corrections=corrections)
-
-
 #: The bias test's level and multiple-comparison correction in every comparison (:func:`bias_record`).
 BIAS_LEVEL = 0.01
 BIAS_CORRECTION = "benjamini-hochberg"
@@ -1034,6 +1006,6 @@ def add_bias_fractions(summary, record, rows=()):
 __all__ = ["BIAS_CORRECTION", "BIAS_LEVEL", "CONFIDENCE", "FIT_RESIDUAL_LIMIT", "HEADLINE_METRIC", "NOISY_TIMING_RATIO",
            "OUTLIER_DOMINATED_SHARE", "REFERENCE_LIMITED_SHARE", "RELMSE_METRICS", "ROW_SUMMARY_COLUMNS",
            "SUMMARY_COLUMNS", "VERDICTS", "DERIVED_ROW_COLUMNS", "BaselineFit", "add_bias_fractions", "add_equal_time_columns", "bias_record",
-           "baseline_from_record", "correction_uncertainty", "equal_quality_speedup", "fit_baseline", "fit_exponent", "fit_record", "fitted_value", "power_root", "rung_corrections", "spp_power", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
+           "correction_uncertainty", "equal_quality_speedup", "fit_baseline", "fit_exponent", "fit_record", "fitted_value", "power_root", "rung_corrections", "spp_power", "judge", "fit_relmse", "fit_time", "headline_metric", "judged_metrics",
            "mean_interval", "ratio_interval", "row_floor", "summarize",
            "timing_uncertainty", "verdict"]

@@ -561,8 +561,8 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
         ``image_of(row)`` returns a row's linear ``(height, width, 3)`` image.
     provenance : dict
         :func:`~sparselt.provenance.environment_record`, shown on the page.
-    fit : dict, optional
-        PT's fit as ``compare.json`` holds it (drawn on the relMSE plot).
+    fit : BaselineFit, optional
+        PT's fit (drawn on the relMSE plot: :func:`~sparselt.report.comparison_figures.quality_figure`).
     columns : sequence of str, optional
         ``results.csv``'s leading columns (default :data:`COLUMN_ORDER`).
 

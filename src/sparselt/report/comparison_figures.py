@@ -46,10 +46,11 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
         (method, spp) at its median time, with min-max time bars and the
         95% interval of its mean over seeds of the verdicts' metric
         (``headline_metric``: the trimmed relMSE, or relMSE).
-    fit : dict, optional
-        PT's fit as ``compare.json`` holds it (``intercept_seconds``,
-        ``seconds_per_spp``, ``relmse_per_seed``, ``spp_range``): drawn as
-        a dashed curve on the relMSE panel.
+    fit : BaselineFit, optional
+        PT's fit (:class:`~sparselt.experiments.equal_time.BaselineFit`):
+        its corrected, held curve (``mean_value``, the verdicts' reading) of
+        the verdicts' metric drawn dashed on the relMSE panel against its
+        time line.
 
     Returns
     -------
@@ -82,9 +83,7 @@ def quality_figure(rows, scene, epsilon, summary=None, fit=None):
         yerr = np.where(np.isfinite(low), [relmse - np.maximum(low, relmse * 1e-3), high - relmse], 0.0)
         right.errorbar(seconds, relmse, xerr=bars, yerr=yerr, marker="o", color=line.get_color(), label=method,
                        capsize=2)
-    from ..experiments.equal_time import baseline_from_record  # the protocol's own reading (report sits below it)
-
-    baseline = baseline_from_record(fit) if fit and fit.get(f"{metric}_per_seed") else None
+    baseline = fit if fit is not None and metric in fit.fits else None
     if baseline is not None:
         spps = np.geomspace(*baseline.spp_range, 64)
         c, floor = baseline.mean_fit(metric)
