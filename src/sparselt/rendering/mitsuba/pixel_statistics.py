@@ -105,11 +105,13 @@ def sample_pixel_statistics(scene, layout, grid_shape, seed, names, *, spp=None,
     random numbers): ``spp`` per film pixel, or ``counts[p]`` of pixel
     ``p`` (an allocation). Nothing per sample leaves the kernel: a uniform
     pass reduces each pixel's ``spp`` consecutive lanes with a block
-    reduction; an allocation is drawn as blocks of consecutive samples of
-    one pixel, each of a power-of-two size (:func:`allocation_blocks`): one
-    launch per size, block-reduced in the kernel, a pixel's few blocks
-    merged on the host. Both are in a fixed order: the same seed gives the
-    same bytes (atomic additions would not).
+    reduction; an allocation is drawn in one launch (several past
+    :data:`LANE_LIMIT` lanes) as blocks of :data:`ALLOCATION_BLOCK`
+    consecutive samples of one pixel, block-reduced in the kernel, and each
+    pixel's remaining samples as single lanes (:func:`allocation_layouts`);
+    the host merges each pixel's blocks, then its single lanes
+    (:func:`sparselt.kernels.merge_runs`). Both are in a fixed order: the
+    same seed gives the same bytes (atomic additions would not).
 
     Parameters
     ----------
