@@ -28,7 +28,8 @@ from pathlib import Path
 
 from sparselt.experiments.equal_time import DERIVED_ROW_COLUMNS, fit_record, judge
 from sparselt.provenance import write_json
-from sparselt.report.comparison import equal_time_table, results_csv, summary_csv, table_6
+from sparselt.report.comparison import (PAGE_TITLE_PREFIX, comparison_page, equal_time_table, results_csv, summary_csv,
+                                       table_6)
 from sparselt.report.comparison_rows import COLUMN_ORDER
 from sparselt.report.results import read_records_csv
 from sparselt.report.table import markdown_document
@@ -56,16 +57,10 @@ def rejudge(folder):
             if (folder / "table_6.csv").exists():
                 files["table_6.csv"] = guided[0].csv()
     page = folder / "index.html"
-    if page.exists() and "<title>sparselt compare:" in page.read_text():  # its tables and verdicts, judged again
-        from sparselt.report.comparison import comparison_section
-        from sparselt.report.page import page_html
-
-        scene = record["config"]["scene"]
-        section = comparison_section(folder, "", rows, report_config(record["config"]), scene,
-                                     methods=record["methods"], summary=summary,
-                                     epsilon=record.get("relmse_epsilon", 0.01))
-        files["index.html"] = page_html(
-            folder, f"sparselt compare: {scene}", [section], record["provenance"],
+    if page.exists() and f"<title>{PAGE_TITLE_PREFIX}" in page.read_text():  # its tables and verdicts, judged again
+        files["index.html"] = comparison_page(
+            folder, rows, report_config(record["config"]), record["config"]["scene"], methods=record["methods"],
+            summary=summary, epsilon=record.get("relmse_epsilon", 0.01), provenance=record["provenance"],
             note="Re-judged by scripts/rejudge_experiments.py (the commit that last changed this page says when): "
                  "the tables and verdicts are the equal-time protocol's of that commit; the measurements, images and "
                  "figures are the run's (provenance below).")

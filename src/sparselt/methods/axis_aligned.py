@@ -406,7 +406,7 @@ class _AxisAligned(Method):
         # compiled (a one-launch run uses the pilot's), results discarded.
         for rest in ("allocated", "uniform"):
             self._run(context, Budget(spp=4, seed=WARM_UP_SEED), PhaseTimer(), warming=rest)
-        # An allocation's launches of every block size, whichever the small warm-up's allocation held.
+        # An allocation with both blocks and single lanes: the 4-spp warm-up's allocation may hold no whole block.
         counts = np.zeros(context.resolution[0] * context.resolution[1], dtype=np.int64)
         counts[:2] = 2 * ALLOCATION_BLOCK - 1
         context.scene.sample_pixel_statistics(context.layout, context.grid_shape, WARM_UP_SEED, self.statistics,

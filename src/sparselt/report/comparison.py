@@ -600,13 +600,25 @@ def write_comparison_outputs(folder, rows, reference, config, scene, *, methods,
     if guided:
         text("table_6.md", markdown_document(*guided))
         text("table_6.csv", guided[0].csv())
-    section = comparison_section(folder.path, "", rows, config, scene, methods=methods, summary=summary,
-                                 epsilon=epsilon)
-    text("index.html", page_html(folder.path, f"sparselt compare: {scene}", [section], provenance))
+    text("index.html", comparison_page(folder.path, rows, config, scene, methods=methods, summary=summary,
+                                       epsilon=epsilon, provenance=provenance))
     return written
 
 
+#: Every comparison page's title starts so (:func:`comparison_page`).
+PAGE_TITLE_PREFIX = "sparselt compare: "
+
+
+def comparison_page(folder_path, rows, config, scene, *, methods, summary, epsilon, provenance, note=""):
+    """A comparison's page (``index.html``) as HTML text: its :func:`comparison_section` under the title
+    :data:`PAGE_TITLE_PREFIX` + ``scene``, with ``provenance`` and an optional ``note`` under the title (what
+    :func:`write_comparison_outputs` writes, and the committed folders' re-judging)."""
+    section = comparison_section(folder_path, "", rows, config, scene, methods=methods, summary=summary,
+                                 epsilon=epsilon)
+    return page_html(folder_path, PAGE_TITLE_PREFIX + scene, [section], provenance, note=note)
+
+
 __all__ = ["COLUMN_ORDER", "DEFAULT_EPSILON", "EXTRA_COLUMNS", "RESULT_COLUMNS", "TABLE_8_COLUMNS", "THESIS_GUIDING_TABLES",
-           "THESIS_TABLES", "THESIS_TIMES", "comparison_section", "equal_time_table", "equal_time_verdicts",
+           "THESIS_TABLES", "THESIS_TIMES", "PAGE_TITLE_PREFIX", "comparison_page", "comparison_section", "equal_time_table", "equal_time_verdicts",
            "guided_budgets", "methods_table", "results_csv",
            "results_table", "summary_csv", "table_6", "table_8", "verdict_sentence", "write_comparison_outputs"]

@@ -107,9 +107,9 @@ def pixel_lanes(layout, grid_shape, spp, seed, first_pixel, pixel_count, film_si
     ``explicit``, ``(pixels, sample_indices)``, draws exactly those samples
     instead of ``spp`` per pixel of the run; ``units``, the arguments of
     :func:`~sparselt.rendering.mitsuba.lanes.unit_lanes` but the seed, draws
-    blocks and single samples of listed pixels; ``seed`` is the 32-bit seed; ``cell=False``: no grid cell
-    (None); ``first_sample``: the run's sample indices start there
-    (:func:`~sparselt.rendering.mitsuba.lanes.item_lanes`).
+    blocks and single samples of listed pixels; ``seed`` is the 32-bit
+    seed; ``cell=False``: no grid cell (None); ``first_sample``: the run's
+    sample indices start there (:func:`~sparselt.rendering.mitsuba.lanes.item_lanes`).
     """
     mi, dr = modules()
     if units is not None:
