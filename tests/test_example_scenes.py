@@ -6,6 +6,9 @@ integrator on the features each adds.
 - ``dusk-scene``: an HDR environment map with a small bright sun, a spot light, a point light, an area emitter
   whose radiance is a bitmap, a bump map, the principled BSDF, a binary PLY mesh, smooth plastic, solid glass, the
   default Gaussian pixel filter.
+- ``greenhouse-scene``: Mitsuba's analytic sun and sky (``sunsky``), alpha-cut leaves (a ``mask`` BSDF with a bitmap
+  opacity over a two-sided textured diffuse) as instances of a shape group, a normal map, a blend BSDF with a bitmap
+  weight, a rough dielectric, an anisotropic rough conductor, a cylinder, a tent pixel filter.
 
 Real Mitsuba renders at a small size, fixed seeds; bounds from the passes' standard errors.
 """
@@ -22,7 +25,7 @@ from sparselt.rendering.scenes import get_scene
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 #: (folder, the path kind's depth in its suite.toml)
-SCENES = (("atelier-scene", 5), ("dusk-scene", 6))
+SCENES = (("atelier-scene", 5), ("dusk-scene", 6), ("greenhouse-scene", 5))
 PASSES = 6
 SPP = 128
 #: Pixels that see only emitters are the same in every pass (a standard error of 0); their two renders differ by
@@ -57,3 +60,24 @@ def test_the_path_estimator_matches_mitsubas_path_integrator(passes):
                              ROUNDING * np.abs(mean))
     z = (ours.mean(axis=0) - mean) / np.maximum(pixel_error, 1e-12)
     assert np.mean(np.abs(z) > 4) <= 0.01
+
+
+def test_instanced_shapes_leave_the_soft_shadow_inputs_whole():
+    """greenhouse-scene's leaves are instances of a shape group, which have no surface area: the light sample's
+    light size (``sqrt(A) / 2`` of its emitter's shape) comes from a table read on the host, so the auxiliary
+    outputs and the filters' statistics work there. Where the lamp (a 0.24 x 0.16 rectangle) was sampled it is
+    its ``sqrt(A) / 2``; for the sun and sky (no shape) 0; both kinds of sample occur."""
+    import math
+
+    from sparselt.rendering.mitsuba import MitsubaScene
+
+    scene = MitsubaScene(get_scene(str(EXAMPLES / "greenhouse-scene" / "scene.xml")), (24, 16))
+    layout = path_layout("path", 3)
+    grid = (24, 16) + (4,) * (len(layout.dimensions) - 2)
+    _, _, _, auxiliary = scene.sample_pixels(layout, grid, 16, 5, auxiliary=("light_distance", "light_size"))
+    sampled = auxiliary["light_size"][np.isfinite(auxiliary["light_distance"])]
+    lamp = math.sqrt(0.24 * 0.16) / 2
+    assert np.all(np.isclose(sampled, lamp, rtol=1e-5) | (sampled == 0.0))
+    assert 0 < np.mean(sampled > 0) < 1
+    statistics, _ = scene.sample_pixel_statistics(layout, grid, 5, ("rgb", "least_penumbra"), spp=4)
+    assert np.all(np.isfinite(statistics["rgb"])) and np.isfinite(statistics["least_penumbra"]).any()

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .readback import to_device
 from .runtime import modules
 
 #: Per-sample quantities :meth:`MitsubaScene.sample_pixels` can return beside the path contributions.
@@ -88,7 +89,7 @@ def path_contribution(scene, layout, samples, auxiliary=None):
         result, next_interaction, ray, throughput, active, bsdf_sample = vertex_step(
             world, context, plan, index, samples, interaction, ray, throughput, active, result, parts=parts)
         if first:
-            _record_direct(world, auxiliary, interaction, parts)
+            _record_direct(world, scene.emitter_areas, auxiliary, interaction, parts)
             hit = active & next_interaction.is_valid()
             auxiliary["secondary_distance"] = dr.select(hit, next_interaction.t, dr.inf)
             auxiliary["secondary_diffuse"] = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Diffuse)
@@ -224,7 +225,7 @@ def _record_primary(sensor, auxiliary, interaction, samples, layout):
     auxiliary["light_size"] = dr.zeros(mi.Float, dr.width(depth))
 
 
-def _record_direct(world, auxiliary, interaction, parts):
+def _record_direct(world, emitter_areas, auxiliary, interaction, parts):
     """The first vertex's direct lighting and its light sample's soft-shadow geometry (:data:`AUXILIARY_QUANTITIES`).
 
     ``d1`` is the light sample's distance. Mitsuba returns a blocked light
@@ -235,7 +236,8 @@ def _record_direct(world, auxiliary, interaction, parts):
     (Mehta et al. 2012, 3: the light-occluder distance). The light's
     size is its shape's ``sigma_l = sqrt(A) / 2``: Mehta et al. (2012) model
     a planar light as a Gaussian of standard deviation ``sigma_l`` whose
-    effective width ``2 sigma_l`` is the light's side.
+    effective width ``2 sigma_l`` is the light's side. The area comes from
+    ``emitter_areas`` (:func:`emitter_area_table`).
     """
     mi, dr = modules()
     width = dr.width(interaction.t)
@@ -249,7 +251,7 @@ def _record_direct(world, auxiliary, interaction, parts):
         return  # _record_primary's defaults: no light sample
     direction_sample, _, active_light = parts["light"]
     attempted = parts["light_attempted"] & ~direction_sample.delta
-    area = direction_sample.emitter.get_shape().surface_area()
+    area = dr.gather(mi.Float, emitter_areas, dr.reinterpret_array(mi.UInt32, direction_sample.emitter), attempted)
     facing = dr.dot(direction_sample.n, direction_sample.d) < 0.0
     candidate = attempted & (area > 0.0) & (direction_sample.pdf == 0.0) & facing & \
         dr.isfinite(direction_sample.dist) & (direction_sample.dist > 0.0)
@@ -260,6 +262,31 @@ def _record_direct(world, auxiliary, interaction, parts):
     auxiliary["light_distance"] = dr.select(sampled, distance, dr.inf)
     auxiliary["occluder_distance"] = dr.select(blocked, dr.norm(direction_sample.p - blocker.p), dr.inf)
     auxiliary["light_size"] = dr.select(sampled & (area > 0.0), 0.5 * dr.sqrt(area), 0.0)
+
+
+def emitter_area_table(world):
+    """The surface area of each emitter's shape (0 for emitters without one), indexed by the emitter's registry
+    index (``dr.reinterpret_array(mi.UInt32, emitter_pointer)``; 0, no emitter, has area 0).
+
+    Read on the host, emitter by emitter: the kernel then gathers an area
+    instead of calling ``surface_area`` through the light sample's shape
+    pointer, a call Dr.Jit traces for every shape alive, which fails where
+    one of them (an ``instance`` of a ``shapegroup``) has no surface area.
+    At least two entries (a gather from one element compiles another kernel).
+    """
+    mi, dr = modules()
+    areas = {}
+    for emitter in world.emitters():
+        shape = emitter.get_shape()
+        index = int(np.ravel(np.asarray(dr.reinterpret_array(mi.UInt32, mi.EmitterPtr(emitter))))[0])
+        try:
+            areas[index] = float(np.ravel(np.asarray(shape.surface_area()))[0]) if shape is not None else 0.0
+        except RuntimeError:  # a shape without an area: its light gets no soft-shadow width (light_size 0)
+            areas[index] = 0.0
+    table = np.zeros(max([1, *areas]) + 1)
+    for index, area in areas.items():
+        table[index] = area
+    return to_device(mi.Float, table, np.float32)
 
 
 def camera_axis(sensor):

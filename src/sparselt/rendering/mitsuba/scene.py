@@ -10,6 +10,7 @@ import numpy as np
 from .cells import sample_cells
 from .gradients import sample_gradients
 from .guided import render_estimator, render_guided
+from .integrand import emitter_area_table
 from .integrators import render_aovs, render_path
 from .path_classes import render_path_classes
 from .pixel_statistics import sample_pixel_statistics
@@ -52,6 +53,8 @@ class MitsubaScene:
     coherent_camera_rays : bool
         Whether camera rays are traced as coherent packets
         (:func:`~sparselt.rendering.mitsuba.scene_dictionaries.coherent_camera_rays`).
+    emitter_areas : mi.Float
+        :func:`~sparselt.rendering.mitsuba.integrand.emitter_area_table` of the scene.
     """
 
     def __init__(self, spec, resolution, *, variant=None):
@@ -72,6 +75,7 @@ class MitsubaScene:
             self.camera = self._focus_on_central_hit(self.camera)
         self.sensor = mi.load_dict(sensor_dictionary(self.camera, self.width, self.height))
         self.coherent_camera_rays = coherent_camera_rays(self.camera)
+        self.emitter_areas = emitter_area_table(self.scene)
 
     def _focus_on_central_hit(self, camera):
         """``camera`` focused at the distance where the ray through the image centre hits the scene.
