@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from sparselt.experiments.equal_time import BaselineFit, equal_quality_speedup
+from sparselt.experiments.equal_time import BaselineFit, equal_quality_speedup, ratio_interval, verdict
 from sparselt.experiments.suite_aggregate import aggregate, aggregate_verdict
 
 
@@ -47,6 +47,20 @@ def test_identical_seeds_and_one_scene_give_a_point_interval():
     assert record["speedup_ci_low"] == pytest.approx(4.0) and record["speedup_ci_high"] == pytest.approx(4.0)
     assert record["relmse_ratio_ci_low"] == pytest.approx(0.25)
     assert aggregate_verdict(record) == "wins"
+
+
+def test_a_suite_of_one_scene_states_that_scenes_own_interval_and_verdict():
+    """One scene, three seeds, no timing noise: the aggregate's relMSE-ratio interval is the comparison's own
+    (the delta method's t interval, 2 degrees of freedom), to the bootstrap's Monte Carlo error, and so is the
+    verdict. Resampling the three seeds' values instead gave about half its log width and called this loss-like
+    cell a loss (as on greenhouse-dof, where the cell was within noise)."""
+    method, pt = [1.02, 1.31, 1.12], [1.0, 1.05, 0.97]
+    ratio, low, high = ratio_interval(method, pt)
+    assert verdict(low, high) == "within noise" and ratio > 1.1
+    (record,) = aggregate([scene("a", method, pt)], resamples=20000)
+    assert math.log(record["relmse_ratio_ci_high"] / ratio) == pytest.approx(math.log(high / ratio), rel=0.1)
+    assert math.log(ratio / record["relmse_ratio_ci_low"]) == pytest.approx(math.log(ratio / low), rel=0.1)
+    assert aggregate_verdict(record) == "within noise"
 
 
 def test_the_interval_widens_with_the_spread_between_scenes_and_with_timing_noise():

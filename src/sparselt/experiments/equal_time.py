@@ -130,11 +130,18 @@ def ratio_interval(numerator, denominator):
     ratio = float(x.mean() / y.mean())
     if x.size < 2 or not ratio > 0:
         return ratio, math.nan, math.nan
+    half = _t_quantile(x.size - 1) * log_ratio_standard_error(x, y)
+    return ratio, ratio * math.exp(-half), ratio * math.exp(half)
+
+
+def log_ratio_standard_error(numerator, denominator):
+    """The delta method's standard error of ``log(mean x / mean y)`` for paired samples (two or more), as
+    :func:`ratio_interval` uses it (with ``n - 1`` degrees of freedom)."""
+    x, y = np.asarray(numerator, np.float64), np.asarray(denominator, np.float64)
     covariance = np.cov(x, y, ddof=1)
     variance = (covariance[0, 0] / x.mean() ** 2 + covariance[1, 1] / y.mean() ** 2
                 - 2 * covariance[0, 1] / (x.mean() * y.mean())) / x.size
-    half = _t_quantile(x.size - 1) * math.sqrt(max(variance, 0.0))
-    return ratio, ratio * math.exp(-half), ratio * math.exp(half)
+    return math.sqrt(max(float(variance), 0.0))
 
 
 def verdict(low, high):

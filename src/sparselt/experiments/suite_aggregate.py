@@ -5,11 +5,19 @@ sparselt gives, per (method, spp), the geometric mean over scenes of the
 equal-quality speed-up over PT and of the relMSE ratio at equal time (the
 comparison's headline metric, :mod:`sparselt.experiments.equal_time`), each
 with a 95% interval from a two-level bootstrap: scenes resampled with
-replacement, then each chosen scene's seeds resampled with replacement
-(Davison & Hinkley 1997, 2.4, the hierarchical bootstrap), every resample's
-per-scene ratio mapped to a speed-up through that scene's own PT fits
-(:func:`~sparselt.experiments.equal_time.equal_quality_speedup`). The counts
-of verdicts, and the worst scene, sit beside them.
+replacement (Davison & Hinkley 1997, 2.4, the hierarchical bootstrap), then
+each chosen scene's ratio drawn from its own sampling distribution, the one
+its comparison's interval states (the delta method's log ratio with a
+Student-t of ``n - 1`` degrees of freedom over its ``n`` seeds, its time and
+PT's local correction as the comparison widens by them: a parametric
+bootstrap, Davison & Hinkley 1997, 2.2), every draw mapped to a speed-up
+through that scene's own PT fits
+(:func:`~sparselt.experiments.equal_time.equal_quality_speedup`). A suite of
+one scene then states that scene's interval and verdict: resampling three
+seeds' values, as the bootstrap did before (issue 37, fourteenth session),
+gave intervals about half as wide as the seeds' t interval and a suite of one
+scene a loss where the scene's own cell was within noise. The counts of
+verdicts, and the worst scene, sit beside them.
 
 Only cells with a ratio enter the means: a ``reference-limited`` cell
 (the reference's noise hides the method's error) or one without PT's value at
@@ -31,7 +39,7 @@ import math
 
 import numpy as np
 
-from .equal_time import correction_uncertainty, row_floor
+from .equal_time import correction_uncertainty, log_ratio_standard_error, row_floor
 
 #: Bootstrap resamples of an aggregate's interval, and the generator's seed (recorded in ``suite.json``).
 RESAMPLES = 2000
@@ -82,20 +90,17 @@ class SceneCell:
             self.ratio = float(self.numerator.mean() / self.denominator.mean())
 
     def draws(self, generator, shape):
-        """``(log ratio, log speed-up)`` arrays of ``shape``: each a resample of the seeds with replacement, at a
-        time drawn from the cell's timing uncertainty ``d`` (log-normal, 95% of it within ``1 +- d``, as the
-        comparison's own interval reads PT at ``t / (1 + d)`` and ``t (1 + d)``)."""
+        """``(log ratio, log speed-up)`` arrays of ``shape``: each the seeds' ratio drawn from its sampling
+        distribution (``log r + s T``, ``s`` the delta method's standard error over the ``n`` paired seeds and
+        ``T`` a Student-t of ``n - 1`` degrees of freedom, as the comparison's own interval), at a time drawn
+        from the cell's timing uncertainty ``d`` (log-normal, 95% of it within ``1 +- d``, as the comparison's
+        own interval reads PT at ``t / (1 + d)`` and ``t (1 + d)``)."""
         count = self.numerator.size
-        indices = generator.integers(0, count, shape + (count,))
-        # A resample's mean spreads by sqrt((n - 1) / n) of the mean's standard error: widen it back (Davison &
-        # Hinkley 1997, 3.3), keeping it positive; with three seeds the per-scene spread is still only roughly known.
-        widen = math.sqrt(count / (count - 1)) if count > 1 else 1.0
-
-        def mean_of(values):
-            centre = values.mean()
-            return np.maximum(centre + widen * (values[indices].mean(axis=-1) - centre), 1e-9 * centre)
-
-        ratio = mean_of(self.numerator) / mean_of(self.denominator)
+        ratio = np.full(shape, self.ratio)
+        if count > 1:
+            error = log_ratio_standard_error(self.numerator, self.denominator)
+            # t's tails reach beyond float range (a ratio of 0 or infinity); beyond e^+-50 no percentile moves.
+            ratio = ratio * np.exp(np.clip(error * generator.standard_t(count - 1, shape), -50.0, 50.0))
         seconds = self.seconds * (1.0 + self.timing) ** (generator.standard_normal(shape) / NORMAL_QUANTILE)
         fit = self.fit
         lowest, highest = fit.spp_range
