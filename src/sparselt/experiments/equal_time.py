@@ -102,7 +102,7 @@ NOISY_TIMING_RATIO = 1.5
 VERDICTS = ("wins", "loses", "within noise", "one seed", "no PT value", "reference-limited")
 
 
-def _t_quantile(degrees):
+def t_quantile(degrees):
     """The two-sided 95% Student-t quantile (scipy's, exact)."""
     from scipy.stats import t
 
@@ -115,7 +115,7 @@ def mean_interval(values):
     mean = float(values.mean())
     if values.size < 2:
         return mean, math.nan, math.nan
-    half = _t_quantile(values.size - 1) * float(values.std(ddof=1)) / math.sqrt(values.size)
+    half = t_quantile(values.size - 1) * float(values.std(ddof=1)) / math.sqrt(values.size)
     return mean, mean - half, mean + half
 
 
@@ -130,18 +130,11 @@ def ratio_interval(numerator, denominator):
     ratio = float(x.mean() / y.mean())
     if x.size < 2 or not ratio > 0:
         return ratio, math.nan, math.nan
-    half = _t_quantile(x.size - 1) * log_ratio_standard_error(x, y)
-    return ratio, ratio * math.exp(-half), ratio * math.exp(half)
-
-
-def log_ratio_standard_error(numerator, denominator):
-    """The delta method's standard error of ``log(mean x / mean y)`` for paired samples (two or more), as
-    :func:`ratio_interval` uses it (with ``n - 1`` degrees of freedom)."""
-    x, y = np.asarray(numerator, np.float64), np.asarray(denominator, np.float64)
     covariance = np.cov(x, y, ddof=1)
     variance = (covariance[0, 0] / x.mean() ** 2 + covariance[1, 1] / y.mean() ** 2
                 - 2 * covariance[0, 1] / (x.mean() * y.mean())) / x.size
-    return math.sqrt(max(float(variance), 0.0))
+    half = t_quantile(x.size - 1) * math.sqrt(max(variance, 0.0))
+    return ratio, ratio * math.exp(-half), ratio * math.exp(half)
 
 
 def verdict(low, high):
@@ -769,7 +762,7 @@ def correction_uncertainty(fit, metric, seconds, seeds):
     factor, error = fit.correction(metric, fit.spp_at(seconds))
     if not (factor > 0 and error > 0):
         return 0.0
-    return _t_quantile(seeds - 1) * math.log1p(float(error) / float(factor))
+    return t_quantile(seeds - 1) * math.log1p(float(error) / float(factor))
 
 
 def equal_quality_speedup(fit, metric, ratio, seconds, floor):

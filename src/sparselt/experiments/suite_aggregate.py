@@ -6,17 +6,17 @@ equal-quality speed-up over PT and of the relMSE ratio at equal time (the
 comparison's headline metric, :mod:`sparselt.experiments.equal_time`), each
 with a 95% interval from a two-level bootstrap: scenes resampled with
 replacement (Davison & Hinkley 1997, 2.4, the hierarchical bootstrap), then
-each chosen scene's ratio drawn from its own sampling distribution, the one
-its comparison's interval states (the delta method's log ratio with a
-Student-t of ``n - 1`` degrees of freedom over its ``n`` seeds, its time and
-PT's local correction as the comparison widens by them: a parametric
-bootstrap, Davison & Hinkley 1997, 2.2), every draw mapped to a speed-up
-through that scene's own PT fits
+each chosen scene's ratio drawn from the distribution its comparison's own
+interval states (a Student-t of ``n - 1`` degrees of freedom over its ``n``
+seeds, scaled so that its 2.5% and 97.5% points are that interval's bounds,
+which hold the seeds' spread, the time's uncertainty and PT's correction's: a
+parametric bootstrap, Davison & Hinkley 1997, 2.2), every draw mapped to a
+speed-up through that scene's own PT fits
 (:func:`~sparselt.experiments.equal_time.equal_quality_speedup`). A suite of
-one scene then states that scene's interval and verdict: resampling three
-seeds' values, as the bootstrap did before (issue 37, fourteenth session),
-gave intervals about half as wide as the seeds' t interval and a suite of one
-scene a loss where the scene's own cell was within noise. The counts of
+one scene therefore states that scene's interval and verdict. (Until issue
+37's fourteenth session the seeds' values were resampled: with three seeds
+that gave intervals about half as wide as the seeds' t interval, and a suite
+of one scene called a loss where the scene's own cell was within noise.) The counts of
 verdicts, and the worst scene, sit beside them.
 
 Only cells with a ratio enter the means: a ``reference-limited`` cell
@@ -39,13 +39,12 @@ import math
 
 import numpy as np
 
-from .equal_time import correction_uncertainty, log_ratio_standard_error, row_floor
+from .equal_time import row_floor, t_quantile
 
 #: Bootstrap resamples of an aggregate's interval, and the generator's seed (recorded in ``suite.json``).
 RESAMPLES = 2000
 BOOTSTRAP_SEED = 20261204
 CONFIDENCE = 0.95
-NORMAL_QUANTILE = 1.959963984540054  # the standard normal's 97.5% quantile
 #: The verdicts with a ratio (they enter the geometric means).
 JUDGED = ("wins", "loses", "within noise", "one seed")
 AGGREGATE_COLUMNS = (
@@ -56,13 +55,15 @@ AGGREGATE_COLUMNS = (
 
 
 class SceneCell:
-    """One scene's (method, spp) cell, with what the bootstrap resamples: its seeds' debiased errors and its time.
+    """One scene's (method, spp) cell, with what the bootstrap draws: its ratio, from the interval its comparison
+    states.
 
     Parameters
     ----------
     scene : str
     record : dict
-        The cell's summary record (:func:`~sparselt.experiments.equal_time.summarize`).
+        The cell's summary record (:func:`~sparselt.experiments.equal_time.summarize`), with its headline
+        metric's ratio interval.
     rows : list of dict
         Its seeds' rows, with the equal-time columns.
     fit : BaselineFit or None
@@ -80,44 +81,44 @@ class SceneCell:
             metric = record["headline_metric"]
             self.metric = metric
             floors = np.array([row_floor(row, metric) for row in rows])
-            self.numerator = np.array([row[metric] for row in rows], dtype=np.float64) - floors
-            self.denominator = np.array([row[f"{metric}_pt_equal_time"] for row in rows], dtype=np.float64) - floors
+            numerator = np.array([row[metric] for row in rows], dtype=np.float64) - floors
+            denominator = np.array([row[f"{metric}_pt_equal_time"] for row in rows], dtype=np.float64) - floors
             self.floor = row_floor(rows[0], metric)
             self.seconds = float(record["seconds_total"])
-            timing = record.get("timing_uncertainty")
-            self.timing = float(timing) if isinstance(timing, (int, float)) and math.isfinite(timing) else 0.0
-            self.correction = correction_uncertainty(fit, metric, self.seconds, len(rows))
-            self.ratio = float(self.numerator.mean() / self.denominator.mean())
+            self.ratio = float(numerator.mean() / denominator.mean())
+            self.degrees = len(rows) - 1
+            self.scales = _interval_scales(self.ratio, record.get(f"{metric}_ratio_ci_low"),
+                                           record.get(f"{metric}_ratio_ci_high"), self.degrees)
 
     def draws(self, generator, shape):
-        """``(log ratio, log speed-up)`` arrays of ``shape``: each the seeds' ratio drawn from its sampling
-        distribution (``log r + s T``, ``s`` the delta method's standard error over the ``n`` paired seeds and
-        ``T`` a Student-t of ``n - 1`` degrees of freedom, as the comparison's own interval), at a time drawn
-        from the cell's timing uncertainty ``d`` (log-normal, 95% of it within ``1 +- d``, as the comparison's
-        own interval reads PT at ``t / (1 + d)`` and ``t (1 + d)``)."""
-        count = self.numerator.size
+        """``(log ratio, log speed-up)`` arrays of ``shape``: the ratio drawn from the distribution the cell's own
+        interval states, ``log r + s T`` (``T`` a Student-t of ``n - 1`` degrees of freedom over its ``n`` seeds,
+        ``s`` its interval's log half-width below or above ``r`` over T's 97.5% quantile: the seeds' spread, the
+        time's uncertainty and PT's correction's, as the comparison combined them), each mapped to a speed-up at
+        the cell's time as the comparison maps its ratio
+        (:func:`~sparselt.experiments.equal_time.equal_quality_speedup`, bounded by PT's ladder at both ends)."""
         ratio = np.full(shape, self.ratio)
-        if count > 1:
-            error = log_ratio_standard_error(self.numerator, self.denominator)
+        if self.scales is not None:
+            below, above = self.scales
+            draw = generator.standard_t(self.degrees, shape)
             # t's tails reach beyond float range (a ratio of 0 or infinity); beyond e^+-50 no percentile moves.
-            ratio = ratio * np.exp(np.clip(error * generator.standard_t(count - 1, shape), -50.0, 50.0))
-        seconds = self.seconds * (1.0 + self.timing) ** (generator.standard_normal(shape) / NORMAL_QUANTILE)
+            ratio = ratio * np.exp(np.clip(draw * np.where(draw < 0, below, above), -50.0, 50.0))
         fit = self.fit
         lowest, highest = fit.spp_range
-
-        def own(at):  # PT's debiased value at time ``at`` (its spp clamped to the ladder), seeds' mean fit
-            return fit.mean_value(self.metric, np.clip((at - fit.intercept) / fit.slope, lowest, highest)) - self.floor
-
-        here, moved = own(self.seconds), own(seconds)
-        # PT's curve times its local correction's error, drawn from its standard error (log-normal, as the cell's
-        # interval widens by it): the ratio is over that curve, and the speed-up read on it.
-        spread = self.correction / NORMAL_QUANTILE
-        curve = np.exp(spread * generator.standard_normal(shape)) if spread > 0 else 1.0
-        ratio = np.where((moved > 0) & (here > 0), ratio * here / (np.where(moved > 0, moved, 1.0) * curve), ratio)
-        # The speed-up of each ratio, as equal_quality_speedup maps it (bounded by PT's ladder at both ends).
-        spp, _ = fit.spp_reaching(self.metric, self.floor + ratio * moved)
-        speedup = (fit.intercept + fit.slope * spp) / seconds
+        at = np.clip((self.seconds - fit.intercept) / fit.slope, lowest, highest)
+        here = fit.mean_value(self.metric, at) - self.floor  # PT's debiased value at the cell's time
+        spp, _ = fit.spp_reaching(self.metric, self.floor + ratio * here)
+        speedup = (fit.intercept + fit.slope * spp) / self.seconds
         return np.log(ratio), np.log(speedup)
+
+
+def _interval_scales(ratio, low, high, degrees):
+    """``(below, above)``: the log half-widths of a ratio's interval ``[low, high]`` under and over ``ratio``,
+    each over the 97.5% Student-t quantile of ``degrees``; None without a finite interval (one seed)."""
+    if degrees < 1 or not all(isinstance(value, float) and math.isfinite(value) and value > 0 for value in (low, high)):
+        return None
+    quantile = t_quantile(degrees)
+    return max(0.0, math.log(ratio / low)) / quantile, max(0.0, math.log(high / ratio)) / quantile
 
 
 def _geometric_mean(values):
