@@ -134,3 +134,17 @@ def test_a_ctrl_c_wrapped_by_a_drjit_custom_operation_is_an_interruption_not_an_
     assert main(["show", "anything", "--out", "pictures"]) == 130
     error = capsys.readouterr().err
     assert "interrupted" in error and "error:" not in error
+
+
+def test_a_scene_with_a_medium_exits_2_before_writing_anything(tmp_path):
+    """A smoke-filled sphere: `compare` names the shape and exits 2 with no output folder (the media would be left
+    out of every image, the reference's too)."""
+    scene = tmp_path / "smoke.xml"
+    scene.write_text('<scene version="3.0.0">\n  <sensor type="perspective"><film type="hdrfilm"><integer name="width" '
+                     'value="16"/><integer name="height" value="16"/></film></sensor>\n  <emitter type="constant"/>\n'
+                     '  <shape type="sphere"><bsdf type="dielectric"/><medium type="homogeneous" name="interior"/>'
+                     '</shape>\n</scene>\n')
+    out = tmp_path / "out"
+    result = run("compare", "--scene", str(scene), "--kind", "path", "--methods", "pt", "--spp", "2", "--out", str(out))
+    assert result.returncode == 2 and "participating media (a Sphere)" in result.stderr
+    assert "Traceback" not in result.stderr and not out.exists()

@@ -359,3 +359,19 @@ def test_cli_render_with_and_without_the_parameter(tmp_path, capsys, parameter_s
     assert os.path.isfile(tmp_path / "with" / "render.json")
     assert main(["render", "--scene", "cornell-box", "--spp", "2", "-D", "spp=4", "--out", str(tmp_path / "b")]) == 2
     assert "takes no parameters" in capsys.readouterr().err
+
+
+# -- participating media: refused, named ------------------------------------------------------------------------
+
+SMOKE = ('  <shape type="sphere" id="smoke-ball"><bsdf type="dielectric"/>\n'
+         '    <medium type="homogeneous" name="interior"><float name="scale" value="4"/></medium></shape>\n')
+
+
+def test_a_scene_with_participating_media_is_refused_naming_the_shape(tmp_path):
+    """Every estimator of sparselt, and Mitsuba's path integrator behind its baseline and references, trace surfaces
+    only: a medium would be left out of every image alike. The scene is refused, the shape named; the same scene
+    without the medium loads."""
+    with pytest.raises(ValueError, match=r"has participating media \(shape 'smoke-ball'\).*remove the media"):
+        MitsubaScene(get_scene(write(tmp_path / "smoke.xml", scene_xml(SPHERE + SMOKE))), SIZE)
+    clear = SMOKE.replace('\n    <medium type="homogeneous" name="interior"><float name="scale" value="4"/></medium>', "")
+    MitsubaScene(get_scene(write(tmp_path / "clear.xml", scene_xml(SPHERE + clear))), SIZE)

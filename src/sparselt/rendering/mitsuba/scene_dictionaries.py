@@ -155,8 +155,9 @@ def load_scene_file(spec):
     ------
     ValueError
         A referenced file is missing or not of its element's type
-        (:func:`~sparselt.rendering.identity.check_xml_references`), or the
-        file uses a parameter that has no value (the message shows ``-D``).
+        (:func:`~sparselt.rendering.identity.check_xml_references`), the
+        file uses a parameter that has no value (the message shows ``-D``),
+        or it has participating media (:func:`refuse_media`).
     """
     from ..identity import check_xml_references
 
@@ -164,7 +165,7 @@ def load_scene_file(spec):
     check_xml_references(spec.filename, spec.parameters)
     mi.file_resolver().prepend(os.path.dirname(spec.filename))
     try:
-        return mi.load_file(spec.filename, **dict(spec.parameters))
+        scene = mi.load_file(spec.filename, **dict(spec.parameters))
     except RuntimeError as error:
         match = _UNDEFINED_PARAMETER.search(str(error))
         if match is None:
@@ -173,3 +174,31 @@ def load_scene_file(spec):
         where = re.sub(r"^\[[^]]*\]\s*", "", str(error).strip())
         raise ValueError(f"scene {spec.name!r} uses parameter ${name} without a default; pass it as -D {name}=VALUE "
                          f"(Mitsuba: {where})") from None
+    refuse_media(scene, spec.filename)
+    return scene
+
+
+def refuse_media(scene, filename):
+    """Refuse a loaded scene with participating media (a shape's interior or exterior medium, a sensor's medium).
+
+    sparselt's estimators, and Mitsuba's ``path`` integrator its baseline and
+    references use, trace surfaces only: a medium would be ignored by every
+    image of a comparison alike, so its verdicts would be about another scene
+    than the file describes (found with a smoke-filled glass sphere, which
+    every method rendered as clear glass).
+
+    Raises
+    ------
+    ValueError
+        Naming the file, the first element with a medium, and what to do.
+    """
+    def name(kind, item):  # its id, or its plugin class ("a Sphere")
+        return f"{kind} {item.id()!r}" if item.id() else f"a {str(item).split('[', 1)[0].strip() or kind}"
+
+    holders = [name("shape", shape) for shape in scene.shapes()
+               if shape.interior_medium() is not None or shape.exterior_medium() is not None]
+    holders += [name("sensor", sensor) for sensor in scene.sensors() if sensor.get_medium() is not None]
+    if holders:
+        raise ValueError(f"scene file {filename!r} has participating media ({', '.join(holders[:3])}"
+                         f"{', ...' if len(holders) > 3 else ''}); sparselt's estimators and its path-traced baseline "
+                         "and references trace surfaces only (as Mitsuba's path integrator): remove the media")
