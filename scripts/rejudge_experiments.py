@@ -11,8 +11,9 @@ per-pixel images keep their untrimmed relMSE as the headline metric.
 A folder with the guided methods' ``table_6.md`` (its PT times at their quality) gets it again.
 A suite whose scenes are re-judged gets its ``suite.csv``, ``aggregate.csv``/``.md`` and ``speedups.png`` again
 (:func:`sparselt.experiments.suite_report.write_suite_tables`, the bootstrap's recorded seed). A comparison's page
-(``index.html``) is written again with its tables and verdicts, noting the re-judging; its figures and a suite's own
-page stay as measured.
+(``index.html``) is written again with its tables and verdicts, noting the re-judging; its figures stay as measured.
+A suite's own page keeps its first tables (its viewers' images are not published) and gets a note under its title
+pointing to the re-judged ones.
 
 Usage: ``.venv/bin/python scripts/rejudge_experiments.py [--check] [--folders a,b]`` (``--check`` writes nothing and
 exits 1 if a folder would change; ``--folders`` re-judges only those folders of ``docs/experiments`` and what they
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -121,6 +123,25 @@ def rewrite_suite(folder, judged):
                        {name: machine_text(record["scenes"][name]["machine"]) for name in names},
                        sorted(record["config"]["spps"]), resamples=record["bootstrap"]["resamples"],
                        seed=record["bootstrap"]["seed"])
+    note_suite_page(folder / "index.html")
+
+
+#: The note a re-judged suite's page carries under its title (its viewers' images are not published, so the page
+#: itself is not written again).
+SUITE_PAGE_NOTE = ('<p id="rejudged"><strong>Re-judged</strong> by scripts/rejudge_experiments.py (the commit that '
+                   'last changed this note says when): the tables on this page are the run\'s first judgement; '
+                   '<a href="aggregate.md">aggregate.md</a>, <a href="aggregate.csv">aggregate.csv</a> and '
+                   '<a href="suite.csv">suite.csv</a> hold the equal-time protocol\'s of that commit, and each '
+                   'scene\'s own report is re-judged.</p>')
+
+
+def note_suite_page(page):
+    """Put :data:`SUITE_PAGE_NOTE` under a suite page's title (replacing an earlier one); nothing without a page."""
+    if not page.exists():
+        return
+    text = page.read_text()
+    text = re.sub(r'\n<p id="rejudged">.*?</p>', "", text, flags=re.S)
+    page.write_text(text.replace("</h1>", "</h1>\n" + SUITE_PAGE_NOTE, 1))
 
 
 def main(argv=None):
