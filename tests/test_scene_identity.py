@@ -375,3 +375,14 @@ def test_a_scene_with_participating_media_is_refused_naming_the_shape(tmp_path):
         MitsubaScene(get_scene(write(tmp_path / "smoke.xml", scene_xml(SPHERE + SMOKE))), SIZE)
     clear = SMOKE.replace('\n    <medium type="homogeneous" name="interior"><float name="scale" value="4"/></medium>', "")
     MitsubaScene(get_scene(write(tmp_path / "clear.xml", scene_xml(SPHERE + clear))), SIZE)
+
+
+def test_a_film_crop_window_is_noted_once_and_the_whole_film_rendered(tmp_path, capsys):
+    crop = '<integer name="crop_offset_x" value="4"/><integer name="crop_width" value="8"/>'
+    path = write(tmp_path / "crop.xml", scene_xml(SPHERE).replace("</film>", crop + "</film>"))
+    assert crop in open(path).read()
+    first = MitsubaScene(get_scene(path), SIZE)
+    MitsubaScene(get_scene(path), SIZE)
+    noted = capsys.readouterr().err
+    assert noted.count("crop window (8x") == 1 and "renders the whole" in noted
+    assert (first.width, first.height) == SIZE

@@ -20,6 +20,23 @@ from .scene_dictionaries import (coherent_camera_rays, camera_from_sensor, load_
                                  to_mitsuba_dict, to_mitsuba_transform)
 
 
+#: Scene files whose ignored crop window was noted (once per file and process).
+_NOTED_CROPS = set()
+
+
+def _note_crop_window(spec, film):
+    """Say on standard error, once per file, that a film's crop window is ignored: sparselt's sensor is the whole
+    film (every method's, PT's and the reference's alike)."""
+    size, crop, offset = (tuple(int(v) for v in values) for values in (film.size(), film.crop_size(),
+                                                                         film.crop_offset()))
+    if crop == size or spec.filename in _NOTED_CROPS:
+        return
+    _NOTED_CROPS.add(spec.filename)
+    print(f"sparselt: note: the film of {spec.name!r} has a crop window ({crop[0]}x{crop[1]} at {offset[0]},"
+          f"{offset[1]}); sparselt renders the whole {size[0]}x{size[1]} film (every method, PT and the reference "
+          "alike): crop its images afterwards", file=sys.stderr)
+
+
 class MitsubaScene:
     """A scene loaded into Mitsuba with a sensor at a given resolution.
 
@@ -67,6 +84,7 @@ class MitsubaScene:
             if not sensors:
                 raise ValueError(f"scene file {spec.filename!r} has no sensor to take the camera from")
             base_camera = camera_from_sensor(sensors[0])
+            _note_crop_window(spec, sensors[0].film())
         else:
             self.scene = mi.load_dict(to_mitsuba_dict(spec.objects))
             base_camera = spec.camera
