@@ -386,3 +386,42 @@ def test_a_film_crop_window_is_noted_once_and_the_whole_film_rendered(tmp_path, 
     noted = capsys.readouterr().err
     assert noted.count("crop window (8x") == 1 and "renders the whole" in noted
     assert (first.width, first.height) == SIZE
+
+
+# -- the file's sensor: principal point offset kept, extra sensors named -----------------------------------------
+
+def _centre_ray_direction(sensor):
+    import mitsuba as mi
+
+    ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=mi.Point2f(0.5, 0.5), sample3=mi.Point2f(0.5, 0.5))
+    return np.array([float(np.ravel(np.asarray(component))[0]) for component in ray.d])
+
+
+def test_a_principal_point_offset_is_kept_by_a_pinhole_and_noted_under_a_thin_lens(tmp_path, capsys):
+    """The file's off-centre view is rendered as the file frames it: the ray through the image centre is the file's
+    own sensor's (off the optical axis). A thin lens (Mitsuba's has no offset) renders the centred view and says so."""
+    offset = '<float name="principal_point_offset_x" value="0.25"/><float name="principal_point_offset_y" value="-0.125"/>'
+    path = write(tmp_path / "offset.xml", scene_xml(SPHERE).replace('<float name="fov" value="45"/>',
+                                                                   '<float name="fov" value="45"/>' + offset))
+    scene = MitsubaScene(get_scene(path), SIZE)
+    assert scene.principal_point == (0.25, -0.125)
+    own = _centre_ray_direction(scene.scene.sensors()[0])
+    ours = _centre_ray_direction(scene.sensor)
+    assert np.allclose(ours, own, atol=1e-6)
+    assert abs(own[0]) > 0.05 and abs(own[1]) > 0.01  # off the optical axis (the camera looks along -z)
+    assert "principal point" not in capsys.readouterr().err
+    lens = MitsubaScene(get_scene(path).with_lens(aperture_radius=0.1, focus_distance=5.0), SIZE)
+    assert lens.principal_point == (0.0, 0.0)
+    assert np.allclose(_centre_ray_direction(lens.sensor), [0.0, 0.0, -1.0], atol=1e-6)
+    assert "principal point offset (0.25, -0.125) that a thin lens cannot keep" in capsys.readouterr().err
+
+
+def test_a_file_with_several_sensors_renders_through_the_first_and_names_them(tmp_path, capsys):
+    second = SENSOR.format(sensor="perspective", lens="", target=0, spp=4).replace(
+        '<sensor type="perspective">', '<sensor type="perspective" id="overview">').replace("0, 0, 5", "5, 0, 0")
+    path = write(tmp_path / "two.xml", scene_xml(SPHERE + second))
+    scene = MitsubaScene(get_scene(path), SIZE)
+    assert np.allclose(_centre_ray_direction(scene.sensor), [0.0, 0.0, -1.0], atol=1e-6)
+    MitsubaScene(get_scene(path), SIZE)
+    noted = capsys.readouterr().err
+    assert noted.count("has 2 sensors") == 1 and "'overview'" in noted and "the first one" in noted

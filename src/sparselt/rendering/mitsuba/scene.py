@@ -16,25 +16,41 @@ from .path_classes import render_path_classes
 from .pixel_statistics import sample_pixel_statistics
 from .pixels import sample_pixels
 from .runtime import initialize, modules
-from .scene_dictionaries import (coherent_camera_rays, camera_from_sensor, load_scene_file, sensor_dictionary,
-                                 to_mitsuba_dict, to_mitsuba_transform)
+from .scene_dictionaries import (coherent_camera_rays, camera_from_sensor, load_scene_file, principal_point_offset,
+                                 sensor_dictionary, to_mitsuba_dict, to_mitsuba_transform)
 
 
-#: Scene files whose ignored crop window was noted (once per file and process).
-_NOTED_CROPS = set()
+#: (scene file, topic) pairs already noted on standard error (once per file and process).
+_NOTED = set()
 
 
-def _note_crop_window(spec, film):
-    """Say on standard error, once per file, that a film's crop window is ignored: sparselt's sensor is the whole
-    film (every method's, PT's and the reference's alike)."""
+def _note_once(spec, topic, message):
+    """Print ``message`` as a note on standard error, once per scene file and ``topic``."""
+    if (spec.filename, topic) in _NOTED:
+        return
+    _NOTED.add((spec.filename, topic))
+    print(f"sparselt: note: {message}", file=sys.stderr)
+
+
+def _note_unused_sensor_settings(spec, sensors, principal_point, thin_lens):
+    """Say on standard error, once per file, what of the file's sensors sparselt does not use: a film's crop window
+    (sparselt's sensor is the whole film, every method's, PT's and the reference's alike), sensors after the first,
+    and a principal point offset under a thin lens (Mitsuba's ``thinlens`` has none)."""
+    film = sensors[0].film()
     size, crop, offset = (tuple(int(v) for v in values) for values in (film.size(), film.crop_size(),
                                                                          film.crop_offset()))
-    if crop == size or spec.filename in _NOTED_CROPS:
-        return
-    _NOTED_CROPS.add(spec.filename)
-    print(f"sparselt: note: the film of {spec.name!r} has a crop window ({crop[0]}x{crop[1]} at {offset[0]},"
-          f"{offset[1]}); sparselt renders the whole {size[0]}x{size[1]} film (every method, PT and the reference "
-          "alike): crop its images afterwards", file=sys.stderr)
+    if crop != size:
+        _note_once(spec, "crop", f"the film of {spec.name!r} has a crop window ({crop[0]}x{crop[1]} at {offset[0]},"
+                   f"{offset[1]}); sparselt renders the whole {size[0]}x{size[1]} film (every method, PT and the "
+                   "reference alike): crop its images afterwards")
+    if len(sensors) > 1:
+        names = ", ".join(repr(sensor.id()) for sensor in sensors)
+        _note_once(spec, "sensors", f"{spec.name!r} has {len(sensors)} sensors ({names}); sparselt renders through "
+                   "the first one the file lists")
+    if thin_lens and any(principal_point):
+        _note_once(spec, "principal point", f"the camera of {spec.name!r} has a principal point offset "
+                   f"({principal_point[0]:g}, {principal_point[1]:g}) that a thin lens cannot keep (Mitsuba's "
+                   "thinlens has none): sparselt renders the centred view (every method, PT and the reference alike)")
 
 
 class MitsubaScene:
@@ -84,14 +100,21 @@ class MitsubaScene:
             if not sensors:
                 raise ValueError(f"scene file {spec.filename!r} has no sensor to take the camera from")
             base_camera = camera_from_sensor(sensors[0])
-            _note_crop_window(spec, sensors[0].film())
+            principal_point = principal_point_offset(sensors[0])
         else:
             self.scene = mi.load_dict(to_mitsuba_dict(spec.objects))
             base_camera = spec.camera
+            principal_point = (0.0, 0.0)
         self.camera = spec.resolved_camera(base_camera)
+        if spec.filename is not None:
+            _note_unused_sensor_settings(spec, sensors, principal_point, self.camera.thin_lens)
         if spec.focuses_on_the_scene(base_camera):
             self.camera = self._focus_on_central_hit(self.camera)
-        self.sensor = mi.load_dict(sensor_dictionary(self.camera, self.width, self.height))
+        #: The file's principal point offset (a fraction of the film, as Mitsuba's perspective sensor takes it),
+        #: kept by a pinhole camera; (0, 0) for built-in scenes.
+        self.principal_point = (0.0, 0.0) if self.camera.thin_lens else principal_point
+        self.sensor = mi.load_dict(sensor_dictionary(self.camera, self.width, self.height,
+                                                     principal_point=self.principal_point))
         self.coherent_camera_rays = coherent_camera_rays(self.camera)
         self.emitter_areas = emitter_area_table(self.scene)
 

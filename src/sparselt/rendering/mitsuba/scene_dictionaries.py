@@ -49,8 +49,13 @@ def to_mitsuba_dict(value):
     return value
 
 
-def sensor_dictionary(camera, width, height):
-    """Mitsuba sensor dictionary for ``camera`` with a box-filtered float film."""
+def sensor_dictionary(camera, width, height, *, principal_point=(0.0, 0.0)):
+    """Mitsuba sensor dictionary for ``camera`` with a box-filtered float film.
+
+    ``principal_point``: the image centre's offset as a fraction of the film
+    (Mitsuba's ``principal_point_offset_x``, ``_y``), for a pinhole camera
+    only (Mitsuba's ``thinlens`` has none).
+    """
     sensor = {
         "type": "thinlens" if camera.thin_lens else "perspective",
         "fov": camera.fov,
@@ -68,11 +73,13 @@ def sensor_dictionary(camera, width, height):
             "component_format": "float32",
         },
     }
+    if camera.thin_lens and any(principal_point):
+        raise ValueError(f"a thin lens has no principal point offset (got {tuple(principal_point)})")
     if camera.thin_lens:
         sensor["aperture_radius"] = camera.aperture_radius
-        sensor["focus_distance"] = camera.focus_distance
-    else:
-        sensor["focus_distance"] = camera.focus_distance
+    elif any(principal_point):
+        sensor["principal_point_offset_x"], sensor["principal_point_offset_y"] = (float(v) for v in principal_point)
+    sensor["focus_distance"] = camera.focus_distance
     return sensor
 
 
@@ -112,6 +119,16 @@ def sensor_type(sensor):
     except Exception:  # noqa: BLE001  (older Mitsuba: the class name starts the description)
         name = str(sensor).split("[", 1)[0].strip()
     return _SENSOR_TYPES.get(name, name)
+
+
+def principal_point_offset(sensor):
+    """A loaded perspective sensor's principal point offset ``(x, y)`` (fractions of the film; ``(0, 0)`` where the
+    sensor has none)."""
+    mi, _ = modules()
+    parameters = mi.traverse(sensor)
+    keys = set(parameters.keys())
+    return tuple(float(np.ravel(np.asarray(parameters[key]))[0]) if key in keys else 0.0
+                 for key in ("principal_point_offset_x", "principal_point_offset_y"))
 
 
 def camera_from_sensor(sensor):
