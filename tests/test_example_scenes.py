@@ -9,6 +9,11 @@ integrator on the features each adds.
 - ``greenhouse-scene``: Mitsuba's analytic sun and sky (``sunsky``), alpha-cut leaves (a ``mask`` BSDF with a bitmap
   opacity over a two-sided textured diffuse) as instances of a shape group, a normal map, a blend BSDF with a bitmap
   weight, a rough dielectric, an anisotropic rough conductor, a cylinder, a tent pixel filter.
+- ``workshop-scene``: included lights (an area light whose radiance is an HDR bitmap, a sphere light whose radiance
+  is a spectrum given per wavelength, a rectangle light facing down by ``flip_normals``, a ``projector``), B-spline
+  curves with the ``hair`` BSDF, a ``conductor`` whose specular reflectance is a bitmap, ``pplastic``, a two-sided
+  BSDF with two different sides, the ``null`` BSDF, an OBJ with face normals, a principal point offset, an RGBA film
+  with a Gaussian pixel filter, a stratified sampler, a second sensor.
 
 Real Mitsuba renders at a small size, fixed seeds; bounds from the passes' standard errors.
 """
@@ -25,7 +30,7 @@ from sparselt.rendering.scenes import get_scene
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 #: (folder, the path kind's depth in its suite.toml)
-SCENES = (("atelier-scene", 5), ("dusk-scene", 6), ("greenhouse-scene", 5))
+SCENES = (("atelier-scene", 5), ("dusk-scene", 6), ("greenhouse-scene", 5), ("workshop-scene", 5))
 PASSES = 6
 SPP = 128
 #: Pixels that see only emitters are the same in every pass (a standard error of 0); their two renders differ by
