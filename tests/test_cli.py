@@ -148,3 +148,18 @@ def test_a_scene_with_a_medium_exits_2_before_writing_anything(tmp_path):
     result = run("compare", "--scene", str(scene), "--kind", "path", "--methods", "pt", "--spp", "2", "--out", str(out))
     assert result.returncode == 2 and "participating media (a Sphere)" in result.stderr
     assert "Traceback" not in result.stderr and not out.exists()
+
+
+def test_an_error_inside_mitsubas_render_is_reported_by_its_own_message(tmp_path):
+    """A blackbody emitter loads in an RGB variant but fails when rendered; Mitsuba's render wraps the failure in
+    Dr.Jit's "error while performing a custom differentiable operation. (see above)". The message says what failed,
+    and nothing is written."""
+    scene = tmp_path / "blackbody.xml"
+    scene.write_text('<scene version="3.0.0">\n  <sensor type="perspective"><film type="hdrfilm"><integer name="width" '
+                     'value="16"/><integer name="height" value="16"/></film></sensor>\n  <shape type="sphere">'
+                     '<emitter type="area"><spectrum type="blackbody" name="radiance"><float name="temperature" '
+                     'value="3200"/></spectrum></emitter></shape>\n</scene>\n')
+    out = tmp_path / "out"
+    result = run("compare", "--scene", str(scene), "--kind", "path", "--methods", "pt", "--spp", "2", "--out", str(out))
+    assert result.returncode == 2 and "BlackBodySpectrum" in result.stderr and "non-spectral" in result.stderr
+    assert "see above" not in result.stderr and "Traceback" not in result.stderr and not out.exists()

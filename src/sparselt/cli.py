@@ -636,7 +636,11 @@ def _show(arguments):
 
 def _describe(error):
     """A one-line message for an error; operating-system errors say what failed on which path
-    (:func:`sparselt.storage.errors.os_error_reason`) and what to do."""
+    (:func:`sparselt.storage.errors.os_error_reason`) and what to do. An error Dr.Jit wraps ("error while
+    performing a custom differentiable operation. (see above)", as ``mi.render`` raises it) is described by the
+    error it wraps: "above" is a traceback the user does not see."""
+    while "(see above)" in str(error) and isinstance(error.__cause__, Exception):
+        error = error.__cause__
     if isinstance(error, OSError) and error.strerror:  # raised by the operating system, not by sparselt
         import errno
 
