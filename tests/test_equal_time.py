@@ -460,3 +460,17 @@ def test_the_quality_figure_draws_pt_as_the_verdicts_read_it():
     measured = np.mean([row["relmse"] for row in rows if row["spp"] == 128])
     assert fit.mean_value("relmse", 128) == pytest.approx(measured, rel=1e-3)
     pyplot().close(figure)
+
+
+def test_a_noise_free_baseline_is_refused_and_a_nearly_converged_one_is_not():
+    """PT whose image equals the reference up to float rounding at every budget (exactly 0 at one; the camera sees
+    only the environment) leaves nothing to compare: refused by name, before any ratio of rounding errors. A PT
+    with a small but real error is judged as usual."""
+    rows = pt_rows(c=(1e-12, 1e-12, 1e-12), floor=0.0) + method_rows("oidn", 16, 0.2, [1e-13] * 3)
+    for row in rows:
+        if row["method"] == "pt" and row["spp"] == 64:
+            row["relmse"] = 0.0
+    with pytest.raises(ValueError, match=r"pt's relMSE against the reference is at most .* no noise"):
+        add_equal_time_columns(rows, baseline="pt")
+    rows = pt_rows(c=(1e-6, 1.1e-6, 0.9e-6), floor=0.0) + method_rows("oidn", 16, 0.2, [1e-8] * 3)
+    assert add_equal_time_columns(rows, baseline="pt") is not None

@@ -578,6 +578,23 @@ def fit_time(spps, seconds):
     return intercept, slope, residual
 
 
+#: A baseline relMSE at or below this at every budget is float rounding: the image has no noise to compare.
+NOISE_FREE_RELMSE = 1e-9
+
+
+def refuse_noise_free_baseline(rows, baseline):
+    """Refuse a comparison whose baseline has no error to lose: its relMSE at every budget is at most
+    :data:`NOISE_FREE_RELMSE` (float rounding; exactly 0 at some). Every path of such an image finds the same
+    value (a camera that sees only emitters or the environment, or only what the kind's paths reach
+    deterministically), so error ratios and equal-quality speed-ups would be quotients of rounding."""
+    values = [float(row["relmse"]) for row in rows if row["method"] == baseline and row.get("relmse") not in ("", None)]
+    if values and max(values) <= NOISE_FREE_RELMSE:
+        raise ValueError(f"{baseline}'s relMSE against the reference is at most {max(values):.2g} at every budget: "
+                         "its image has no noise (every path of a pixel finds the same value, as where the camera "
+                         "sees only emitters or the environment), so no method can be compared with it; frame "
+                         "something the kind's paths light, or choose another kind")
+
+
 def fit_baseline(rows, baseline):
     """The :class:`BaselineFit` of the baseline's rows (at least two spp), or None.
 
@@ -645,7 +662,14 @@ def add_equal_time_columns(rows, *, baseline="pt"):
     -----
     The columns are ``''`` for the baseline's own rows, without a fit, and
     where the row's time lies beyond the baseline's ladder.
+
+    Raises
+    ------
+    ValueError
+        The baseline's image equals the reference up to float rounding at
+        every budget (:func:`refuse_noise_free_baseline`).
     """
+    refuse_noise_free_baseline(rows, baseline)
     fit = fit_baseline(rows, baseline)
     metrics = judged_metrics(rows)
     for row in rows:
