@@ -245,3 +245,29 @@ def test_an_interrupted_suite_resumes_where_it_stopped(tmp_path, monkeypatch):
     assert {path.name: path.stat().st_mtime_ns for path in (tmp_path / "out" / "scenes" / "box").rglob("*")
             if path.name in first} == first
     assert {row["scene"] for row in result.rows} == {"box", "plane"}
+
+
+BLANK = """<scene version="3.0.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="32"/>
+    <integer name="height" value="32"/></film></sensor>
+  <emitter type="constant"><rgb name="radiance" value="0.5"/></emitter>
+</scene>
+"""
+
+
+def test_a_scene_that_cannot_be_compared_stops_the_suite_by_name_keeping_the_finished_ones(tmp_path, capsys):
+    """A scene whose camera sees only a constant environment (a uniform reference: no contrast to compare): the
+    suite exits 2 naming that scene and saying what a rerun can resume; the scene before it stays finished and
+    nothing looks complete."""
+    path = suite_file(tmp_path)
+    (tmp_path / "scenes" / "blank.xml").write_text(BLANK)
+    text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
+    text = text.replace('methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]', 'methods = ["pt", "bilateral"]')
+    path.write_text(text.split("[[scene]]\nname = \"plane\"")[0]
+                    + '[[scene]]\nname = "blank"\nscene = "scenes/blank.xml"\nkind = "path"\n')
+    out = tmp_path / "out"
+    assert main(["suite", str(path), "--out", str(out), "--no-progress"]) == 2
+    message = capsys.readouterr().err
+    assert "scene 'blank': the reference has no contrast" in message and "another --out" in message
+    assert (out / "cells" / "box.json").exists() and not (out / "cells" / "blank.json").exists()
+    assert not (out / "index.html").exists() and not (out / "aggregate.csv").exists()

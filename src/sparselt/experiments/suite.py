@@ -29,6 +29,7 @@ other task shares it while it is timed), and the machine is recorded per scene.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import socket
@@ -136,8 +137,9 @@ class SuiteExperiment(Experiment):
     def run_cell(self, name, state, folder):
         if self.progress:
             print(f"suite: scene {name} ({self.comparisons[name].kind})", file=sys.stderr)
-        record = run_scene(self.comparisons[name], folder.path_of(f"{SCENES}/{name}"), folder.path_of(REFERENCES),
-                           progress=self.progress)
+        with _naming_the_scene(name):
+            record = run_scene(self.comparisons[name], folder.path_of(f"{SCENES}/{name}"),
+                               folder.path_of(REFERENCES), progress=self.progress)
         return dict(record, scene=name)
 
     def run_cells(self, folder, state, *, progress):
@@ -179,7 +181,8 @@ class SuiteExperiment(Experiment):
                 futures[future] = name
             for future in as_completed(list(futures)):
                 name = futures[future]
-                record = dict(future.result(), scene=name)
+                with _naming_the_scene(name):
+                    record = dict(future.result(), scene=name)
                 folder.record_cell(name, record)
                 records[name] = folder.cell(name)
                 say(f"suite: scene {name} done on {record['machine']['host']} in {record['seconds']:.0f} s")
@@ -194,6 +197,19 @@ class SuiteExperiment(Experiment):
         if unfinished:
             raise RuntimeError(f"internal error: scenes {unfinished} did not finish")
         return write_suite_outputs(folder, self.config, records, seconds=time.perf_counter() - self.started)
+
+
+@contextlib.contextmanager
+def _naming_the_scene(name):
+    """A scene's comparison that cannot be made (a ``ValueError``: its scene, kind or settings) stops the suite
+    with the scene named. The scenes finished before it stay in the folder; the same suite run again resumes
+    there, but a suite without the scene, or with its file changed, is another run (another ``--out``)."""
+    try:
+        yield
+    except ValueError as error:
+        raise ValueError(f"scene {name!r}: {error} (the scenes finished before it stay in the output folder; a suite "
+                         "without this scene, or with its file changed, is another run: give it another --out)") \
+            from error
 
 
 def run_suite(config, out, *, overwrite=False, progress=True, scheduler=None):
