@@ -425,3 +425,23 @@ def test_a_file_with_several_sensors_renders_through_the_first_and_names_them(tm
     MitsubaScene(get_scene(path), SIZE)
     noted = capsys.readouterr().err
     assert noted.count("has 2 sensors") == 1 and "'overview'" in noted and "the first one" in noted
+
+
+@pytest.mark.parametrize("files_depth, noted", [("8", "has max_depth 8; the 'path' kind here renders paths up to max "
+                                                     "depth 3 (every method, PT and the reference alike): give "
+                                                     "--max-depth 8"),
+                                                ("-1", "has no depth limit (max_depth -1)"),
+                                                ("3", None)], ids=["deeper", "unlimited", "same"])
+def test_the_files_integrator_depth_is_noted_where_it_differs_from_the_kinds(tmp_path, capsys, files_depth, noted):
+    """sparselt renders every kind to its own --max-depth; a file whose integrator names another says so, once."""
+    from sparselt.rendering.setup import SceneSetup
+
+    head = f'  <integrator type="path"><integer name="max_depth" value="{files_depth}"/></integrator>\n'
+    path = write(tmp_path / f"depth{files_depth}.xml", scene_xml(SPHERE, head=head))
+    for _ in range(2):
+        SceneSetup(scene=path, kind="path", max_depth=3).load()
+    printed = capsys.readouterr().err
+    if noted is None:
+        assert "max_depth" not in printed
+    else:
+        assert printed.count(noted) == 1, printed

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import sys
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -336,9 +337,10 @@ def scene_names():
 
 
 def read_xml_settings(path, parameters=()):
-    """What sparselt takes from a Mitsuba XML file besides the scene: film size and ``hide_emitters``.
+    """What sparselt takes from a Mitsuba XML file besides the scene: film size, ``hide_emitters``, and the
+    integrator's ``max_depth`` (only to note a difference from the kind's depth, :func:`note_once`).
 
-    Returns ``{'resolution': (width, height) or None, 'hide_emitters': bool}``,
+    Returns ``{'resolution': (width, height) or None, 'hide_emitters': bool, 'max_depth': int or None}``,
     resolving ``$name`` references to ``parameters`` (``(name, value)``
     pairs) or else the file's ``<default>`` values. Plain XML parsing: the
     renderer is not needed.
@@ -356,7 +358,7 @@ def read_xml_settings(path, parameters=()):
         text = node.get("value", "")
         return defaults.get(text[1:], text) if text.startswith("$") else text
 
-    settings = {"resolution": None, "hide_emitters": False}
+    settings = {"resolution": None, "hide_emitters": False, "max_depth": None}
     for film in root.iter("film"):
         sizes = {node.get("name"): value(node) for node in film.findall("integer")}
         try:
@@ -368,7 +370,25 @@ def read_xml_settings(path, parameters=()):
         for node in integrator.iter("boolean"):
             if node.get("name") == "hide_emitters":
                 settings["hide_emitters"] = value(node).strip().lower() == "true"
+        for node in integrator.iter("integer"):
+            if node.get("name") == "max_depth" and settings["max_depth"] is None:
+                try:
+                    settings["max_depth"] = int(value(node))
+                except ValueError:
+                    pass
     return settings
+
+
+#: (scene file, topic) pairs already noted on standard error (once per file and process).
+_NOTED = set()
+
+
+def note_once(filename, topic, message):
+    """Print ``message`` as a note on standard error, once per scene file and ``topic`` in a process."""
+    if (filename, topic) in _NOTED:
+        return
+    _NOTED.add((filename, topic))
+    print(f"sparselt: note: {message}", file=sys.stderr)
 
 
 def _load_procedural():

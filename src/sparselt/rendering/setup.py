@@ -22,7 +22,7 @@ from ..checks import check_integer
 from ..digest import digest
 from .layout import KINDS, check_indexable_grid, default_shape, path_layout
 from .mitsuba.runtime import DEFAULT_VARIANT, SUPPORTED_VARIANTS  # plain constants: imports no Mitsuba
-from .scenes import SceneSpec, get_scene
+from .scenes import SceneSpec, get_scene, note_once, read_xml_settings
 
 #: Longest path (Mitsuba's convention) when none is given: one indirect bounce, as the thesis.
 DEFAULT_MAX_DEPTH = 3
@@ -214,7 +214,22 @@ class SceneSetup:
             resolution = self.grid_shape[:2] if self.kind is not None else self.film_resolution
         scene = MitsubaScene(self.spec, tuple(resolution), variant=self.variant)
         layout = self.layout(scene.camera.thin_lens) if self.kind is not None else None
+        if layout is not None and self.spec.filename is not None:
+            self._note_the_files_depth()
         return LoadedScene(setup=self, scene=scene, layout=layout)
+
+    def _note_the_files_depth(self):
+        """Say once per file and depth when the file's integrator names another ``max_depth`` than the one this
+        kind renders to (every method, PT and the reference use :attr:`max_depth`; the file's integrator is not
+        run)."""
+        files_depth = read_xml_settings(self.spec.filename, self.parameters)["max_depth"]
+        if files_depth is None or files_depth == self.max_depth:
+            return
+        theirs = "no depth limit (max_depth -1)" if files_depth < 0 else f"max_depth {files_depth}"
+        advice = "" if files_depth < 0 else f": give --max-depth {files_depth} (max_depth in a suite) to match"
+        note_once(self.spec.filename, ("depth", files_depth, self.max_depth),
+                  f"the integrator of {self.spec.name!r} has {theirs}; the {self.kind!r} kind here renders paths "
+                  f"up to max depth {self.max_depth} (every method, PT and the reference alike){advice}")
 
 
 @dataclass(frozen=True)

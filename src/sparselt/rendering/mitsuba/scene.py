@@ -15,21 +15,10 @@ from .integrators import render_aovs, render_path
 from .path_classes import render_path_classes
 from .pixel_statistics import sample_pixel_statistics
 from .pixels import sample_pixels
+from ..scenes import note_once
 from .runtime import initialize, modules
 from .scene_dictionaries import (coherent_camera_rays, camera_from_sensor, load_scene_file, principal_point_offset,
                                  sensor_dictionary, to_mitsuba_dict, to_mitsuba_transform)
-
-
-#: (scene file, topic) pairs already noted on standard error (once per file and process).
-_NOTED = set()
-
-
-def _note_once(spec, topic, message):
-    """Print ``message`` as a note on standard error, once per scene file and ``topic``."""
-    if (spec.filename, topic) in _NOTED:
-        return
-    _NOTED.add((spec.filename, topic))
-    print(f"sparselt: note: {message}", file=sys.stderr)
 
 
 def _note_unused_sensor_settings(spec, sensors, principal_point, thin_lens):
@@ -40,17 +29,20 @@ def _note_unused_sensor_settings(spec, sensors, principal_point, thin_lens):
     size, crop, offset = (tuple(int(v) for v in values) for values in (film.size(), film.crop_size(),
                                                                          film.crop_offset()))
     if crop != size:
-        _note_once(spec, "crop", f"the film of {spec.name!r} has a crop window ({crop[0]}x{crop[1]} at {offset[0]},"
-                   f"{offset[1]}); sparselt renders the whole {size[0]}x{size[1]} film (every method, PT and the "
-                   "reference alike): crop its images afterwards")
+        note_once(spec.filename, "crop",
+                  f"the film of {spec.name!r} has a crop window ({crop[0]}x{crop[1]} at {offset[0]},{offset[1]}); "
+                  f"sparselt renders the whole {size[0]}x{size[1]} film (every method, PT and the reference alike): "
+                  "crop its images afterwards")
     if len(sensors) > 1:
         names = ", ".join(repr(sensor.id()) for sensor in sensors)
-        _note_once(spec, "sensors", f"{spec.name!r} has {len(sensors)} sensors ({names}); sparselt renders through "
-                   "the first one the file lists")
+        note_once(spec.filename, "sensors",
+                  f"{spec.name!r} has {len(sensors)} sensors ({names}); sparselt renders through the first one the "
+                  "file lists")
     if thin_lens and any(principal_point):
-        _note_once(spec, "principal point", f"the camera of {spec.name!r} has a principal point offset "
-                   f"({principal_point[0]:g}, {principal_point[1]:g}) that a thin lens cannot keep (Mitsuba's "
-                   "thinlens has none): sparselt renders the centred view (every method, PT and the reference alike)")
+        note_once(spec.filename, "principal point",
+                  f"the camera of {spec.name!r} has a principal point offset ({principal_point[0]:g}, "
+                  f"{principal_point[1]:g}) that a thin lens cannot keep (Mitsuba's thinlens has none): sparselt "
+                  "renders the centred view (every method, PT and the reference alike)")
 
 
 class MitsubaScene:
