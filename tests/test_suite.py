@@ -1,6 +1,7 @@
 """Issue 36: ``sparselt suite`` runs a comparison per scene, aggregates with intervals, resumes, runs on Dask."""
 
 import csv
+import json
 import math
 import os
 
@@ -255,19 +256,27 @@ BLANK = """<scene version="3.0.0">
 """
 
 
-def test_a_scene_that_cannot_be_compared_stops_the_suite_by_name_keeping_the_finished_ones(tmp_path, capsys):
-    """A scene whose camera sees only a constant environment (a uniform reference: no contrast to compare): the
-    suite exits 2 naming that scene and saying what a rerun can resume; the scene before it stays finished and
-    nothing looks complete."""
+def test_a_scene_that_cannot_be_compared_is_named_and_the_others_are_aggregated(tmp_path, capsys):
+    """A scene whose camera sees only a constant environment (a uniform reference: no contrast to compare) between
+    two that can be compared: the suite goes on, aggregates the other two, lists the scene and its reason on the
+    page and in suite.json, and exits 2 naming it. A rerun runs nothing again and says the same."""
     path = suite_file(tmp_path)
     (tmp_path / "scenes" / "blank.xml").write_text(BLANK)
     text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
     text = text.replace('methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]', 'methods = ["pt", "bilateral"]')
-    path.write_text(text.split("[[scene]]\nname = \"plane\"")[0]
-                    + '[[scene]]\nname = "blank"\nscene = "scenes/blank.xml"\nkind = "path"\n')
+    box, plane = text.split("[[scene]]\nname = \"plane\"")
+    plane = plane.split("[[scene]]")[0]
+    path.write_text(box + '[[scene]]\nname = "blank"\nscene = "scenes/blank.xml"\nkind = "path"\n\n'
+                    + '[[scene]]\nname = "plane"' + plane)
     out = tmp_path / "out"
-    assert main(["suite", str(path), "--out", str(out), "--no-progress"]) == 2
-    message = capsys.readouterr().err
-    assert "scene 'blank': the reference has no contrast" in message and "another --out" in message
-    assert (out / "cells" / "box.json").exists() and not (out / "cells" / "blank.json").exists()
-    assert not (out / "index.html").exists() and not (out / "aggregate.csv").exists()
+    for _ in range(2):
+        assert main(["suite", str(path), "--out", str(out), "--no-progress"]) == 2
+        message = capsys.readouterr().err
+        assert "scene 'blank' could not be compared: the reference has no contrast" in message
+        assert "1 of 3 scenes could not be compared" in message and "another --out" in message
+    assert {row["scene"] for row in read_csv(out / "suite.csv")} == {"box", "plane"}
+    assert {row["scenes_judged"] for row in read_csv(out / "aggregate.csv")} <= {"1", "2"}
+    page = (out / "index.html").read_text()
+    assert "Scenes not compared" in page and "Scene blank: the reference has no contrast" in page
+    record = json.loads((out / "suite.json").read_text())
+    assert set(record["scenes"]) == {"box", "plane"} and "no contrast" in record["not_compared"]["blank"]

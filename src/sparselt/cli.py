@@ -546,6 +546,13 @@ def _suite(arguments):
                        scheduler=arguments.scheduler)
     print(result.table())
     print(f"wrote {arguments.out} in {result.seconds:.0f} s; open {os.path.join(os.path.abspath(arguments.out), 'index.html')}")
+    if result.not_compared:
+        for name, message in result.not_compared.items():
+            print(f"sparselt suite: error: scene {name!r} could not be compared: {message}", file=sys.stderr)
+        print(f"sparselt suite: {len(result.not_compared)} of {len(config.scenes)} scenes could not be compared; "
+              "the others are aggregated without them (a suite without those scenes, or with their files changed, "
+              "is another run: give it another --out)", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -29,7 +29,6 @@ other task shares it while it is timed), and the machine is recorded per scene.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
 import socket
@@ -137,9 +136,12 @@ class SuiteExperiment(Experiment):
     def run_cell(self, name, state, folder):
         if self.progress:
             print(f"suite: scene {name} ({self.comparisons[name].kind})", file=sys.stderr)
-        with _naming_the_scene(name):
+        try:
             record = run_scene(self.comparisons[name], folder.path_of(f"{SCENES}/{name}"),
                                folder.path_of(REFERENCES), progress=self.progress)
+        except ValueError as error:  # recorded: the suite goes on, and says so at the end
+            print(f"suite: scene {name} cannot be compared: {error}", file=sys.stderr)
+            return _not_compared(name, error)
         return dict(record, scene=name)
 
     def run_cells(self, folder, state, *, progress):
@@ -181,11 +183,16 @@ class SuiteExperiment(Experiment):
                 futures[future] = name
             for future in as_completed(list(futures)):
                 name = futures[future]
-                with _naming_the_scene(name):
+                try:
                     record = dict(future.result(), scene=name)
+                except ValueError as error:
+                    record = _not_compared(name, error)
                 folder.record_cell(name, record)
                 records[name] = folder.cell(name)
-                say(f"suite: scene {name} done on {record['machine']['host']} in {record['seconds']:.0f} s")
+                if NOT_COMPARED in record:
+                    say(f"suite: scene {name} cannot be compared: {record[NOT_COMPARED]}")
+                else:
+                    say(f"suite: scene {name} done on {record['machine']['host']} in {record['seconds']:.0f} s")
         for name in names:
             self.cell_finished(name, records[name], resumed=name not in missing)
         return records
@@ -196,20 +203,22 @@ class SuiteExperiment(Experiment):
         unfinished = [name for name, record in records.items() if record is None or isinstance(record, Unfinished)]
         if unfinished:
             raise RuntimeError(f"internal error: scenes {unfinished} did not finish")
-        return write_suite_outputs(folder, self.config, records, seconds=time.perf_counter() - self.started)
+        not_compared = {name: record[NOT_COMPARED] for name, record in records.items() if NOT_COMPARED in record}
+        if len(not_compared) == len(records):
+            raise ValueError("no scene of the suite could be compared: " + "; ".join(
+                f"scene {name!r}: {message}" for name, message in not_compared.items()))
+        return write_suite_outputs(folder, self.config, records, seconds=time.perf_counter() - self.started,
+                                   not_compared=not_compared)
 
 
-@contextlib.contextmanager
-def _naming_the_scene(name):
-    """A scene's comparison that cannot be made (a ``ValueError``: its scene, kind or settings) stops the suite
-    with the scene named. The scenes finished before it stay in the folder; the same suite run again resumes
-    there, but a suite without the scene, or with its file changed, is another run (another ``--out``)."""
-    try:
-        yield
-    except ValueError as error:
-        raise ValueError(f"scene {name!r}: {error} (the scenes finished before it stay in the output folder; a suite "
-                         "without this scene, or with its file changed, is another run: give it another --out)") \
-            from error
+#: A scene's cell record key holding why its comparison could not be made (its message).
+NOT_COMPARED = "not_compared"
+
+
+def _not_compared(name, error):
+    """The cell record of scene ``name`` whose comparison raised ``error`` (a ``ValueError``: its scene, kind or
+    settings make it impossible, e.g. participating media, a black reference, an image without noise)."""
+    return {"scene": name, NOT_COMPARED: str(error)}
 
 
 def run_suite(config, out, *, overwrite=False, progress=True, scheduler=None):

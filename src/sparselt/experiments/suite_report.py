@@ -45,6 +45,8 @@ class SuiteResult:
     aggregate: list
     rows: list = field(default_factory=list)
     seconds: float = 0.0
+    #: Scene name -> why its comparison could not be made (left out of every table).
+    not_compared: dict = field(default_factory=dict)
 
     def table(self):
         """The aggregate as printed text."""
@@ -228,28 +230,37 @@ def write_suite_tables(folder, scenes, kinds, machines, spps, **aggregate_option
     return aggregated, suite_rows, table
 
 
-def write_suite_outputs(folder, config, records, *, seconds):
-    """Every report file of a finished suite (see :mod:`sparselt.experiments.suite`); returns a :class:`SuiteResult`."""
+def write_suite_outputs(folder, config, records, *, seconds, not_compared=None):
+    """Every report file of a finished suite (see :mod:`sparselt.experiments.suite`); returns a :class:`SuiteResult`.
+
+    ``not_compared``: scene name -> why its comparison could not be made; those scenes are left out of every table
+    and listed in their own section of the page and in ``suite.json``."""
     from ..results import judged_comparison
     from .suite import SCENES, SUITE_FILE
 
+    not_compared = dict(not_compared or {})
+    compared = [scene for scene in config.scenes if scene.name not in not_compared]
     scenes = []
-    for scene in config.scenes:
+    for scene in compared:
         rows, fit, summary, attributes = judged_comparison(folder.path_of(f"{SCENES}/{scene.name}"))
         scenes.append((scene.name, rows, fit, summary))
     aggregated, suite_rows, table = write_suite_tables(
-        folder, scenes, {scene.name: scene.kind for scene in config.scenes},
+        folder, scenes, {scene.name: scene.kind for scene in compared},
         {name: machine_text(records[name]["machine"]) for name, *_ in scenes}, sorted(config.spps))
 
     sections = [Section(title="Across the suite", tables=[table], introduction=(
-        f"Suite {config.name}: {len(config.scenes)} scenes, methods {', '.join(config.methods)}, "
+        f"Suite {config.name}: {len(compared)} scenes"
+        f"{f' ({len(not_compared)} more could not be compared: below)' if not_compared else ''}, methods {', '.join(config.methods)}, "
         f"{', '.join(map(str, config.spps))} spp, seeds {', '.join(map(str, config.seeds))}, "
         f"{config.timing_repeats} timing repeats, reference {config.reference_spp}."),
         links=[("suite.csv: every scene's summary", "suite.csv"), ("aggregate.csv", "aggregate.csv"),
                ("suite.json: configuration, machines, seconds", SUITE_FILE)])]
     sections[0].figures = [Figure("speedups.png", "Equal-quality speed-up over PT of every method on every scene "
                                    "('ref': reference-limited; '>' beyond PT's ladder)")]
-    for index, (scene, (name, rows, fit, summary)) in enumerate(zip(config.scenes, scenes)):
+    if not_compared:
+        sections.append(Section(title="Scenes not compared", introduction=" ".join(
+            f"Scene {name}: {message}." for name, message in not_compared.items())))
+    for index, (scene, (name, rows, fit, summary)) in enumerate(zip(compared, scenes)):
         reference, entries, legend = write_viewer_images(folder, name, folder.path_of(f"{SCENES}/{name}"), rows)
         record = records[name]
         introduction = (f"{scene.reason + ' ' if scene.reason else ''}Scene {scene.scene!r}, kind {scene.kind}; "
@@ -267,6 +278,9 @@ def write_suite_outputs(folder, config, records, *, seconds):
                   bootstrap={"resamples": RESAMPLES, "seed": BOOTSTRAP_SEED, "confidence": CONFIDENCE,
                              "levels": "scenes, then seeds within each scene"},
                   relmse_epsilon=RELMSE_EPSILON)
+    if not_compared:
+        record["not_compared"] = not_compared
     folder.write_json(SUITE_FILE, record)
-    return SuiteResult(out=folder.path, aggregate=aggregated, rows=suite_rows, seconds=seconds)
+    return SuiteResult(out=folder.path, aggregate=aggregated, rows=suite_rows, seconds=seconds,
+                       not_compared=not_compared)
 
