@@ -248,9 +248,9 @@ def write_suite_outputs(folder, config, records, *, seconds, not_compared=None):
         folder, scenes, {scene.name: scene.kind for scene in compared},
         {name: machine_text(records[name]["machine"]) for name, *_ in scenes}, sorted(config.spps))
 
+    left_out = f" ({len(not_compared)} more could not be compared: below)" if not_compared else ""
     sections = [Section(title="Across the suite", tables=[table], introduction=(
-        f"Suite {config.name}: {len(compared)} scenes"
-        f"{f' ({len(not_compared)} more could not be compared: below)' if not_compared else ''}, methods {', '.join(config.methods)}, "
+        f"Suite {config.name}: {len(compared)} scenes{left_out}, methods {', '.join(config.methods)}, "
         f"{', '.join(map(str, config.spps))} spp, seeds {', '.join(map(str, config.seeds))}, "
         f"{config.timing_repeats} timing repeats, reference {config.reference_spp}."),
         links=[("suite.csv: every scene's summary", "suite.csv"), ("aggregate.csv", "aggregate.csv"),

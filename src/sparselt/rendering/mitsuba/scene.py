@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 
+from ..scenes import note_once
 from .cells import sample_cells
 from .gradients import sample_gradients
 from .guided import render_estimator, render_guided
@@ -15,7 +16,6 @@ from .integrators import render_aovs, render_path
 from .path_classes import render_path_classes
 from .pixel_statistics import sample_pixel_statistics
 from .pixels import sample_pixels
-from ..scenes import note_once
 from .runtime import initialize, modules
 from .scene_dictionaries import (coherent_camera_rays, camera_from_sensor, load_scene_file, principal_point_offset,
                                  sensor_dictionary, to_mitsuba_dict, to_mitsuba_transform)
