@@ -136,16 +136,21 @@ def test_a_ctrl_c_wrapped_by_a_drjit_custom_operation_is_an_interruption_not_an_
     assert "interrupted" in error and "error:" not in error
 
 
+def _compare_a_scene_file(tmp_path, shapes):
+    """``compare`` (pt, 2 spp, path kind) on a 16x16 scene file holding ``shapes``: ``(result, output folder)``."""
+    scene = tmp_path / "scene.xml"
+    scene.write_text('<scene version="3.0.0">\n  <sensor type="perspective"><film type="hdrfilm"><integer name="width" '
+                     'value="16"/><integer name="height" value="16"/></film></sensor>\n' + shapes + '</scene>\n')
+    out = tmp_path / "out"
+    return run("compare", "--scene", str(scene), "--kind", "path", "--methods", "pt", "--spp", "2",
+               "--out", str(out)), out
+
+
 def test_a_scene_with_a_medium_exits_2_before_writing_anything(tmp_path):
     """A smoke-filled sphere: `compare` names the shape and exits 2 with no output folder (the media would be left
     out of every image, the reference's too)."""
-    scene = tmp_path / "smoke.xml"
-    scene.write_text('<scene version="3.0.0">\n  <sensor type="perspective"><film type="hdrfilm"><integer name="width" '
-                     'value="16"/><integer name="height" value="16"/></film></sensor>\n  <emitter type="constant"/>\n'
-                     '  <shape type="sphere"><bsdf type="dielectric"/><medium type="homogeneous" name="interior"/>'
-                     '</shape>\n</scene>\n')
-    out = tmp_path / "out"
-    result = run("compare", "--scene", str(scene), "--kind", "path", "--methods", "pt", "--spp", "2", "--out", str(out))
+    result, out = _compare_a_scene_file(tmp_path, '  <emitter type="constant"/>\n  <shape type="sphere"><bsdf '
+                                        'type="dielectric"/><medium type="homogeneous" name="interior"/></shape>\n')
     assert result.returncode == 2 and "participating media (a Sphere)" in result.stderr
     assert "Traceback" not in result.stderr and not out.exists()
 
@@ -154,12 +159,8 @@ def test_an_error_inside_mitsubas_render_is_reported_by_its_own_message(tmp_path
     """A blackbody emitter loads in an RGB variant but fails when rendered; Mitsuba's render wraps the failure in
     Dr.Jit's "error while performing a custom differentiable operation. (see above)". The message says what failed,
     and nothing is written."""
-    scene = tmp_path / "blackbody.xml"
-    scene.write_text('<scene version="3.0.0">\n  <sensor type="perspective"><film type="hdrfilm"><integer name="width" '
-                     'value="16"/><integer name="height" value="16"/></film></sensor>\n  <shape type="sphere">'
-                     '<emitter type="area"><spectrum type="blackbody" name="radiance"><float name="temperature" '
-                     'value="3200"/></spectrum></emitter></shape>\n</scene>\n')
-    out = tmp_path / "out"
-    result = run("compare", "--scene", str(scene), "--kind", "path", "--methods", "pt", "--spp", "2", "--out", str(out))
+    result, out = _compare_a_scene_file(tmp_path, '  <shape type="sphere"><emitter type="area"><spectrum '
+                                        'type="blackbody" name="radiance"><float name="temperature" value="3200"/>'
+                                        '</spectrum></emitter></shape>\n')
     assert result.returncode == 2 and "BlackBodySpectrum" in result.stderr and "non-spectral" in result.stderr
     assert "see above" not in result.stderr and "Traceback" not in result.stderr and not out.exists()
