@@ -127,6 +127,9 @@ class SceneSpec:
     ``None`` for a file until the adapter has read the file's sensor.
     ``parameters`` are the values of the file's ``$name`` parameters
     (Mitsuba's ``-D name=value``), sorted ``(name, value)`` string pairs.
+    ``integrator_max_depth`` is the file integrator's ``max_depth`` (None
+    where it names none, and for built-in scenes): sparselt renders each kind
+    to its own depth and only notes a difference.
     """
 
     name: str
@@ -138,6 +141,7 @@ class SceneSpec:
     lens_overrides: dict = field(default_factory=dict)
     hide_emitters: bool = False
     parameters: tuple = ()
+    integrator_max_depth: int | None = None
 
     def with_parameters(self, parameters):
         """Return a copy with values for the XML file's ``$name`` parameters (later values win).
@@ -180,7 +184,7 @@ class SceneSpec:
         spec = replace(self, parameters=tuple(sorted(values.items())))
         settings = read_xml_settings(self.filename, spec.parameters)
         return replace(spec, default_resolution=settings["resolution"] or self.default_resolution,
-                       hide_emitters=settings["hide_emitters"])
+                       hide_emitters=settings["hide_emitters"], integrator_max_depth=settings["max_depth"])
 
     def with_lens(self, aperture_radius=None, focus_distance=None):
         """Record a thin-lens override; applied to the camera once it is known."""
@@ -338,7 +342,7 @@ def scene_names():
 
 def read_xml_settings(path, parameters=()):
     """What sparselt takes from a Mitsuba XML file besides the scene: film size, ``hide_emitters``, and the
-    integrator's ``max_depth`` (only to note a difference from the kind's depth, :func:`note_once`).
+    integrator's ``max_depth`` (only to note a difference from the kind's depth).
 
     Returns ``{'resolution': (width, height) or None, 'hide_emitters': bool, 'max_depth': int or None}``,
     resolving ``$name`` references to ``parameters`` (``(name, value)``
@@ -414,7 +418,7 @@ def get_scene(name_or_path):
         settings = read_xml_settings(path)
         return SceneSpec(name=os.path.basename(path), description=f"Mitsuba scene file {path}", filename=path,
                          default_resolution=settings["resolution"] or (256, 256),
-                         hide_emitters=settings["hide_emitters"])
+                         hide_emitters=settings["hide_emitters"], integrator_max_depth=settings["max_depth"])
     raise ValueError(
         f"unknown scene {name_or_path!r}; built-in scenes are: {', '.join(sorted(SCENES))}; "
         "or give the path of a Mitsuba 3 XML scene file"

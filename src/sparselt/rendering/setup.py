@@ -22,7 +22,7 @@ from ..checks import check_integer
 from ..digest import digest
 from .layout import KINDS, check_indexable_grid, default_shape, path_layout
 from .mitsuba.runtime import DEFAULT_VARIANT, SUPPORTED_VARIANTS  # plain constants: imports no Mitsuba
-from .scenes import SceneSpec, get_scene, note_once, read_xml_settings
+from .scenes import SceneSpec, get_scene, note_once
 
 #: Longest path (Mitsuba's convention) when none is given: one indirect bounce, as the thesis.
 DEFAULT_MAX_DEPTH = 3
@@ -222,7 +222,7 @@ class SceneSetup:
         """Say once per file and depth when the file's integrator names another ``max_depth`` than the one this
         kind renders to (every method, PT and the reference use :attr:`max_depth`; the file's integrator is not
         run)."""
-        files_depth = read_xml_settings(self.spec.filename, self.parameters)["max_depth"]
+        files_depth = self.spec.integrator_max_depth
         if files_depth is None or files_depth == self.max_depth:
             return
         theirs = "no depth limit (max_depth -1)" if files_depth < 0 else f"max_depth {files_depth}"

@@ -121,25 +121,30 @@ def sensor_type(sensor):
     return _SENSOR_TYPES.get(name, name)
 
 
-def principal_point_offset(sensor):
-    """A loaded perspective sensor's principal point offset ``(x, y)`` (fractions of the film; ``(0, 0)`` where the
-    sensor has none)."""
+def _parameter_reader(sensor):
+    """``read(key, default)``: a loaded sensor's scalar parameter ``key`` (Mitsuba's ``traverse``), or ``default``
+    where the sensor has none."""
     mi, _ = modules()
     parameters = mi.traverse(sensor)
-    keys = set(parameters.keys())
-    return tuple(float(np.ravel(np.asarray(parameters[key]))[0]) if key in keys else 0.0
-                 for key in ("principal_point_offset_x", "principal_point_offset_y"))
-
-
-def camera_from_sensor(sensor):
-    """Read a loaded Mitsuba perspective or thin-lens sensor back into a :class:`Camera`."""
-    mi, _ = modules()
-    parameters = mi.traverse(sensor)
-    matrix = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
     keys = set(parameters.keys())
 
     def read(key, default):
         return float(np.ravel(np.asarray(parameters[key]))[0]) if key in keys else default
+
+    return read
+
+
+def principal_point_offset(sensor):
+    """A loaded perspective sensor's principal point offset ``(x, y)`` (fractions of the film; ``(0, 0)`` where the
+    sensor has none)."""
+    read = _parameter_reader(sensor)
+    return read("principal_point_offset_x", 0.0), read("principal_point_offset_y", 0.0)
+
+
+def camera_from_sensor(sensor):
+    """Read a loaded Mitsuba perspective or thin-lens sensor back into a :class:`Camera`."""
+    matrix = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
+    read = _parameter_reader(sensor)
 
     fov = read("x_fov", None)
     if fov is None:
