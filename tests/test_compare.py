@@ -284,6 +284,39 @@ def test_noise_sigma_is_the_median_standard_error_of_the_pixel_means():
     assert noise_sigma(samples) == pytest.approx(expected, rel=1e-9)
 
 
+def test_each_budget_is_run_once_untimed_before_its_first_timed_run(tmp_path, cache, monkeypatch):
+    """A budget's first run in a process takes fresh memory (measured: up to 2x the later runs' time), so every
+    (row, spp) runs once at the warm-up seed before its first timed run, once per command, PT's rungs included;
+    its seconds go to the row's warm-up time, never to a cell."""
+    calls = []
+    for name in ("pt", "samples-mean"):
+        method = method_class(name)
+
+        def logged(self, context, budget, timer, run=method.run, name=name):
+            calls.append((name, budget.spp, budget.seed))
+            return run(self, context, budget, timer)
+
+        monkeypatch.setattr(method, "run", logged)
+    config = tiny(methods=("pt", "samples-mean"), spps=(4, 8), seeds=(1, 2), timing_repeats=2)
+    out = tmp_path / "budgets"
+    compare(config, out, progress=False, cache_directory=cache)
+    timed = [call for call in calls if call[2] != WARM_UP_SEED]
+    budgets = {(name, spp) for name, spp, _ in timed}
+    assert {spp for name, spp in budgets if name == "pt"} - set(config.spps)  # PT's rungs beyond the budgets too
+    for name, spp in budgets:
+        first_timed = next(index for index, call in enumerate(calls) if call[:2] == (name, spp)
+                           and call[2] != WARM_UP_SEED)
+        warmed = [index for index, call in enumerate(calls) if call == (name, spp, WARM_UP_SEED)]
+        # Before the first timed run, never after it (the method's own warm-up may have run this spp too).
+        assert warmed and max(warmed) < first_timed, (name, spp, calls)
+    record = json.loads((out / "compare.json").read_text())
+    assert set(record["warm_up_seconds"]) == {"pt", "samples-mean"}
+    # A rerun in a new process finds every cell done: nothing runs, nothing is warmed.
+    calls.clear()
+    compare(config, out, progress=False, cache_directory=cache)
+    assert calls == []
+
+
 def test_timing_repeats_run_in_rounds_and_an_interrupted_run_resumes_between_them(tmp_path, cache, monkeypatch):
     """Each cell's repeats are spread over the run (PT's rungs between them), each repeat is kept as it
     finishes, and a run stopped mid-round resumes without running a finished repeat again."""

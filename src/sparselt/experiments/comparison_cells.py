@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..methods import TIME_PHASES, Budget, run_timed, warm_up
+from ..methods import TIME_PHASES, WARM_UP_SEED, Budget, run_timed, warm_up
 from ..methods.contract import check_result
 from ..methods.variants import variant_file_name
 from .equal_time import NOISY_TIMING_RATIO
@@ -155,6 +155,7 @@ class CellRunner:
         self.rows_so_far = tuple(rows_so_far)
         self.seconds = 0.0
         self.warm_up_seconds = {}
+        self.warmed_budgets = set()  # (row, spp) run once untimed in this process (_warm_budget)
         self.metric_seconds = 0.0
 
     # ----------------------------------------------------------------- the plan
@@ -257,6 +258,8 @@ class CellRunner:
             warm_up(method, context)
             self.warm_up_seconds[row] = time.perf_counter() - warm_start
             self.seconds += self.warm_up_seconds[row]
+        if (row, spp) not in self.warmed_budgets:
+            self._warm_budget(method, spp)
         budget = Budget(spp=spp, seed=seed)
         gc.collect()  # garbage freed before the clock starts (see warm_up)
         run_start = time.perf_counter()
@@ -291,6 +294,32 @@ class CellRunner:
         partial["wall_seconds"].append(wall)
         self.folder.record_repeat(name, partial)
         return float(np.median(partial["totals"]))
+
+    def _warm_budget(self, method, spp):
+        """Run ``method`` once at ``spp`` untimed (:data:`~sparselt.methods.base.WARM_UP_SEED`, result discarded)
+        before its first timed run at that budget.
+
+        A budget's first run in a process takes memory no run of that size has
+        held: the renderer's allocator caches freed blocks by size, and a block
+        it has not cached is fresh memory the operating system zeroes and maps
+        (huge pages). Measured on the 2-core machine: the first 64-spp run of
+        ``aaf-indirect`` on courtyard took 2.07 s against 1.30 s for every later
+        seed, 1.5 s of it system time; across the workshop scene's suite the
+        first repeat of seed 1 was up to 2.3x its second (``aaf-indirect``),
+        1.4x for ``gradient-l2``, ``oidn`` and PT's ladder on the indirect kind.
+        With two repeats a cell's median is their mean, so seed 1's time carried
+        half of it. The method's warm-up (:func:`~sparselt.methods.base.warm_up`,
+        a small budget) compiles the kernels; this run acquires the budget's
+        memory. Its seconds are added to the row's ``warm_up_seconds``.
+        """
+        row = method.label
+        gc.collect()
+        warm_start = time.perf_counter()
+        run_timed(method, self.context, Budget(spp=spp, seed=WARM_UP_SEED))
+        elapsed = time.perf_counter() - warm_start
+        self.warmed_budgets.add((row, spp))
+        self.warm_up_seconds[row] = self.warm_up_seconds.get(row, 0.0) + elapsed
+        self.seconds += elapsed
 
     def _finished(self, method, spp, seed):
         """Run a cell's remaining repeats back to back (a rung added after the rounds), finish it; its time."""
