@@ -3,8 +3,9 @@
 The research question of the thesis's applications: *is there a gain in image
 quality for the same computation time?* (8.1.1). :func:`compare` runs every
 requested method of the registry (:mod:`sparselt.methods`) at every budget and
-seed on one scene, in one process, kernels warmed first, and measures each
-image against a path-traced reference.
+seed on one scene, in one process, kernels warmed first and each budget run
+once untimed before it is timed (:class:`~sparselt.experiments.comparison_cells.CellRunner`),
+and measures each image against a path-traced reference.
 
 Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
 
@@ -13,7 +14,7 @@ Output folder (an :class:`~sparselt.storage.folder.ExperimentFolder`)::
                             every command that contributed (versions, git revision)
     compare.json            resolved configuration (the union of methods, budgets and
                             seeds over reruns), every method's record (description, roles,
-                            source, resolved options), warm-up (compile) times, harness overhead
+                            source, resolved options), warm-up times (compiles and untimed budget runs), harness overhead
     results.csv             one row per (method, spp, seed): RESULT_COLUMNS first
     cells/                  one JSON record per finished (method, spp, seed), with the
                             method's resolved options: what a rerun resumes from

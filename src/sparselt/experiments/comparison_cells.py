@@ -145,6 +145,10 @@ class CellRunner:
     as it finishes (``repeats/NAME.json``), so an interrupted run resumes
     within a round; a cell enters ``cells/`` only with all its repeats.
 
+    Each (row, spp) runs once untimed at the warm-up seed before its first
+    timed run in the process (:meth:`_warm_budget`): the method's warm-up
+    compiles its kernels at a small budget, this acquires the budget's memory.
+
     ``rows_so_far`` are the rows of every run of the folder (a rerun's union):
     the ladder covers the cells an earlier run finished too.
     """

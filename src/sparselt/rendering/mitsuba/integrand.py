@@ -100,13 +100,70 @@ def path_contribution(scene, layout, samples, auxiliary=None):
     return result
 
 
+#: Shape types whose hits need no guard in :func:`intersect` (Mitsuba's ``ShapeType`` names); any other shape in
+#: a scene (a curve, an instance whose group may hold curves) turns the guard on.
+PLAIN_SHAPE_TYPES = frozenset({"Mesh", "Rectangle", "Cylinder", "Disk", "Sphere", "SDFGrid", "Ellipsoids",
+                               "EllipsoidsMesh"})
+#: Curve shapes: :func:`intersect` keeps their hits' segment parameter this many float32 ulps (of the segment's
+#: index + 1) below 1.
+CURVE_PARAMETER_MARGIN = 2.0
+
+
+def intersect(world, ray, active=True, *, coherent=False):
+    """The surface interaction of each lane's ``ray`` with ``world`` (every ``RayFlags.All`` field), as
+    ``world.ray_intersect(ray, RayFlags.All, coherent, active)`` returns it, except on curves' segment ends.
+
+    Every ray this package traces goes through here. Mitsuba 3.9 (LLVM
+    backend) reads one element past the end of a ``bsplinecurve``'s segment
+    table when a ray hits the last segment within float32 rounding of its
+    end: the segment parameter goes through a global one, ``(index + u) /
+    segments``, and back, and the product rounds up to ``segments``. Dr.Jit's
+    debug mode shows "out-of-bounds read from position 120 in an array of
+    size 120" on the workshop scene's brush of 120 segments (none without the
+    brush, none with this guard). The value read is garbage; where it then
+    indexes the control points, the process dies with a segmentation fault:
+    ``pt`` on the workshop scene's indirect kind at 64 spp and seed 2^30 did,
+    every time. So in a scene with curves (or instances, whose groups may
+    hold them) the intersection is computed as its preliminary part and its
+    surface interaction, and on curve hits the segment parameter ``u`` is
+    kept :data:`CURVE_PARAMETER_MARGIN` float32 ulps of ``index + 1`` below
+    1 (at most 1.5e-5 of a segment for the first 2^9 segments of a shape).
+    Elsewhere the result is ``Scene.ray_intersect``'s (the two-step form
+    gives the same fields bit for bit: measured on courtyard, the
+    greenhouse's instances and the workshop scene; ``t``, ``p``, ``n``, the
+    shading frame, ``uv``, ``dp_du``, ``dp_dv``, ``wi``, the shape). Mitsuba's
+    own ``path`` integrator (``pt`` on the path and dof kinds, the
+    references) has no such guard.
+    """
+    mi, dr = modules()
+    active = mi.Bool(active) if isinstance(active, bool) else active
+    if not _has_unguarded_shapes(world):
+        return world.ray_intersect(ray, mi.RayFlags.All, coherent, active)
+    preliminary = world.ray_intersect_preliminary(ray, coherent, active)
+    kind = preliminary.shape.shape_type()
+    curve = (kind == int(mi.ShapeType.BSplineCurve.value)) | (kind == int(mi.ShapeType.LinearCurve.value))
+    # The float32 ulp of index + 1: its exponent bits, as a float, times 2^-23.
+    scale = dr.reinterpret_array(mi.Float, dr.reinterpret_array(mi.UInt32, mi.Float(preliminary.prim_index + 1))
+                                 & 0x7F800000)
+    bound = 1.0 - CURVE_PARAMETER_MARGIN * scale * 2.0 ** -23
+    preliminary.prim_uv.x = dr.select(curve, dr.minimum(preliminary.prim_uv.x, bound), preliminary.prim_uv.x)
+    return preliminary.compute_surface_interaction(ray, mi.RayFlags.All, active)
+
+
+def _has_unguarded_shapes(world):
+    """Whether ``world`` has a shape outside :data:`PLAIN_SHAPE_TYPES` (a curve, an instance)."""
+    mi, _ = modules()
+    plain = {int(mi.ShapeType.__members__[name].value) for name in PLAIN_SHAPE_TYPES}
+    return any(int(shape.shape_type()) not in plain for shape in world.shapes())
+
+
 def camera_hit(scene, layout, samples):
     """The camera ray of each lane's film (and lens) sample, its weight as a ``Color3f`` and its first hit."""
     mi, _ = modules()
     position = mi.Point2f(samples["x"], samples["y"])
     aperture = mi.Point2f(samples["lens_u"], samples["lens_v"]) if layout.thin_lens else mi.Point2f(0.5, 0.5)
     ray, ray_weight = scene.sensor.sample_ray(time=0.0, sample1=0.5, sample2=position, sample3=aperture)
-    hit = scene.scene.ray_intersect(ray, mi.RayFlags.All, scene.coherent_camera_rays, mi.Bool(True))
+    hit = intersect(scene.scene, ray, coherent=scene.coherent_camera_rays)
     return ray, mi.Color3f(ray_weight), hit
 
 
@@ -147,7 +204,7 @@ def vertex_step(world, context, plan, index, samples, interaction, ray, throughp
     throughput = dr.select(active, throughput * bsdf_weight, 0.0)
     active &= dr.max(throughput) > 0.0
     ray = interaction.spawn_ray(interaction.to_world(bsdf_sample.wo))
-    next_interaction = world.ray_intersect(ray, active)
+    next_interaction = intersect(world, ray, active)
     if plan.count_emission_hit:
         delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
         emission = emission_found(world, plan, interaction, next_interaction, bsdf_sample.pdf, delta, active)
@@ -255,7 +312,7 @@ def _record_direct(world, emitter_areas, auxiliary, interaction, parts):
     facing = dr.dot(direction_sample.n, direction_sample.d) < 0.0
     candidate = attempted & (area > 0.0) & (direction_sample.pdf == 0.0) & facing & \
         dr.isfinite(direction_sample.dist) & (direction_sample.dist > 0.0)
-    blocker = world.ray_intersect(interaction.spawn_ray_to(direction_sample.p), candidate)
+    blocker = intersect(world, interaction.spawn_ray_to(direction_sample.p), candidate)
     blocked = candidate & blocker.is_valid()
     sampled = (active_light & ~direction_sample.delta) | blocked
     distance = direction_sample.dist

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...checks import check_integer
-from .integrand import power_heuristic, zero_nonfinite
+from .integrand import intersect, power_heuristic, zero_nonfinite
 from .lanes import in_pixel, item_lanes
 from .launch import launch
 from .readback import count_false, rgb_array
@@ -149,7 +149,7 @@ def _trace(scene, max_depth, position, aperture, generator):
     total = mi.Color3f(0.0)
     caustic = mi.Color3f(0.0)
     active = mi.Bool(True)
-    interaction = world.ray_intersect(ray, mi.RayFlags.All, scene.coherent_camera_rays, active)
+    interaction = intersect(world, ray, active, coherent=scene.coherent_camera_rays)
     if not scene.spec.hide_emitters:
         total += throughput * interaction.emitter(world).eval(interaction, active)
     # The path's light end so far: some vertex was diffuse; the last vertex is specular and a diffuse one comes
@@ -183,7 +183,7 @@ def _trace(scene, max_depth, position, aperture, generator):
         seen_diffuse |= ~specular
 
         ray = interaction.spawn_ray(interaction.to_world(bsdf_sample.wo))
-        next_interaction = world.ray_intersect(ray, active)
+        next_interaction = intersect(world, ray, active)
         emitter_sample = mi.DirectionSample3f(world, si=next_interaction, ref=interaction)
         emission = emitter_sample.emitter.eval(next_interaction, active)
         light_pdf = world.pdf_emitter_direction(interaction, emitter_sample, active & ~specular)

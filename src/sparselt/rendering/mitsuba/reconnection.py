@@ -70,8 +70,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from .integrand import (camera_hit, emission_found, light_contribution, light_sample, next_event, power_heuristic,
-                        vertex_step)
+from .integrand import (camera_hit, emission_found, intersect, light_contribution, light_sample, next_event,
+                        power_heuristic, vertex_step)
 from .runtime import modules
 
 #: The weight of each side's tails where both sides replay (a bijection: the balance heuristic of equal densities).
@@ -155,7 +155,7 @@ def split_path(scene, layout, samples, tail_active=True):
     after_first = dr.select(alive, camera_weight * bsdf_weight, 0.0)
     alive &= dr.max(after_first) > 0.0
     second_ray = first.spawn_ray(first.to_world(bsdf_sample.wo))
-    second = world.ray_intersect(second_ray, alive)
+    second = intersect(world, second_ray, alive)
     delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
     emission_second = zero
     if plan.count_emission_hit:
@@ -192,7 +192,7 @@ def _second_vertex(world, context, layout, samples, second, second_ray, alive):
     after_second = dr.select(active, bsdf_weight, 0.0)
     live = active & (dr.max(after_second) > 0.0)
     ray = second.spawn_ray(second.to_world(bsdf_sample.wo))
-    third = world.ray_intersect(ray, live)
+    third = intersect(world, ray, live)
     delta = mi.has_flag(bsdf_sample.sampled_type, mi.BSDFFlags.Delta)
     emission_raw, light_pdf, weight = dr.zeros(mi.Color3f, lanes), dr.zeros(mi.Float, lanes), dr.ones(mi.Float, lanes)
     if plan.count_emission_hit:

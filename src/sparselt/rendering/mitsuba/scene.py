@@ -11,7 +11,7 @@ from ..scenes import note_once
 from .cells import sample_cells
 from .gradients import sample_gradients
 from .guided import render_estimator, render_guided
-from .integrand import emitter_area_table
+from .integrand import emitter_area_table, intersect
 from .integrators import render_aovs, render_path
 from .path_classes import render_path_classes
 from .pixel_statistics import sample_pixel_statistics
@@ -119,7 +119,7 @@ class MitsubaScene:
         mi, _ = modules()
         pinhole = mi.load_dict(sensor_dictionary(dataclasses.replace(camera, aperture_radius=None), 1, 1))
         ray, _ = pinhole.sample_ray(time=0.0, sample1=0.5, sample2=mi.Point2f(0.5, 0.5), sample3=mi.Point2f(0.5, 0.5))
-        interaction = self.scene.ray_intersect(ray)
+        interaction = intersect(self.scene, ray)
         # Mitsuba's thin lens focuses on a plane at focus_distance along the camera's local z axis.
         hit = [float(np.ravel(np.asarray(coordinate))[0]) for coordinate in interaction.p]
         distance = float((to_mitsuba_transform(camera.to_world).inverse() @ mi.ScalarPoint3f(hit))[2])
