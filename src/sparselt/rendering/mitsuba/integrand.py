@@ -115,19 +115,21 @@ def intersect(world, ray, active=True, *, coherent=False):
 
     Every ray this package traces goes through here. Mitsuba 3.9 (LLVM
     backend) reads one element past the end of a ``bsplinecurve``'s segment
-    table when a ray hits the last segment within float32 rounding of its
-    end: the segment parameter goes through a global one, ``(index + u) /
-    segments``, and back, and the product rounds up to ``segments``. Dr.Jit's
-    debug mode shows "out-of-bounds read from position 120 in an array of
-    size 120" on the workshop scene's brush of 120 segments (none without the
-    brush, none with this guard). The value read is garbage; where it then
+    table for some hits: Dr.Jit's debug mode shows "out-of-bounds read from
+    position 120 in an array of size 120" on the workshop scene's brush of
+    120 segments, none without the brush, none with this guard. The hits
+    themselves are on valid segments (the last, 119, with its parameter up
+    to 0.99999595), and keeping the parameter off the segment's end removes
+    the read: as far as measured, a parameter within float32 rounding of the
+    last segment's end is taken to a global one and back and lands on
+    segment 120. The value read is garbage; where it then
     indexes the control points, the process dies with a segmentation fault:
     ``pt`` on the workshop scene's indirect kind at 64 spp and seed 2^30 did,
     every time. So in a scene with curves (or instances, whose groups may
     hold them) the intersection is computed as its preliminary part and its
     surface interaction, and on curve hits the segment parameter ``u`` is
     kept :data:`CURVE_PARAMETER_MARGIN` float32 ulps of ``index + 1`` below
-    1 (at most 1.5e-5 of a segment for the first 2^9 segments of a shape).
+    1 (1.5e-5 of a segment at the 120th segment, 2.4e-4 at the 2000th).
     Elsewhere the result is ``Scene.ray_intersect``'s (the two-step form
     gives the same fields bit for bit: measured on courtyard, the
     greenhouse's instances and the workshop scene; ``t``, ``p``, ``n``, the
