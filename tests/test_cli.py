@@ -1,6 +1,7 @@
 """The `sparselt` command: help, listing, sample -> show, render, and exit codes on bad input."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -164,3 +165,20 @@ def test_an_error_inside_mitsubas_render_is_reported_by_its_own_message(tmp_path
                                         '</spectrum></emitter></shape>\n')
     assert result.returncode == 2 and "BlackBodySpectrum" in result.stderr and "non-spectral" in result.stderr
     assert "see above" not in result.stderr and "Traceback" not in result.stderr and not out.exists()
+
+
+def test_a_crash_in_native_code_prints_where_python_was():
+    """A segmentation fault (here faulthandler's own test fault) after the CLI has started prints Python's
+    stack on standard error instead of ending the process without a word."""
+    script = ("import sys\n"
+              "from sparselt import cli\n"
+              "cli.report_crashes()\n"
+              "import faulthandler\n"
+              "def inside_a_method():\n"
+              "    faulthandler._sigsegv()\n"
+              "inside_a_method()\n")
+    environment = {name: value for name, value in os.environ.items() if name != "PYTHONFAULTHANDLER"}
+    finished = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                              env=environment)
+    assert finished.returncode != 0
+    assert "Segmentation fault" in finished.stderr and "inside_a_method" in finished.stderr, finished.stderr

@@ -670,6 +670,23 @@ def _plugins_named(argv):
     return modules
 
 
+def report_crashes():
+    """Have a crash inside native code (the renderer, a numba kernel) print where Python was before the process
+    dies: Python's ``faulthandler`` on standard error, every thread's stack.
+
+    A segmentation fault in a Dr.Jit worker thread ended a suite run with no word at all (issue 37, sixteenth
+    session: Mitsuba reading past a curve's segment table); with this, standard error names the method and the
+    step (``comparison_cells._repeat``, ``run_timed``, the method's ``run``, the renderer's call).
+    """
+    import faulthandler
+
+    if not faulthandler.is_enabled():
+        try:
+            faulthandler.enable(file=sys.stderr, all_threads=True)
+        except (AttributeError, ValueError, OSError):  # no usable file descriptor behind sys.stderr
+            pass
+
+
 def main(argv=None):
     from .provenance import record_command
 
@@ -685,6 +702,7 @@ def main(argv=None):
     parser = build_parser()
     arguments = parser.parse_args(argv)
     record_command(["sparselt"] + argv)
+    report_crashes()
     try:
         try:
             return arguments.handler(arguments)
