@@ -303,10 +303,12 @@ class CellRunner:
         """Run ``method`` once at ``spp`` untimed (:data:`~sparselt.methods.base.WARM_UP_SEED`, result discarded)
         before its first timed run at that budget.
 
-        A budget's first run in a process takes memory no run of that size has
-        held: the renderer's allocator caches freed blocks by size, and a block
-        it has not cached is fresh memory the operating system zeroes and maps
-        (huge pages). Measured on the 2-core machine: the first 64-spp run of
+        A budget's first run in a process is slower than its later ones with no
+        kernel compiling (every launch a cache hit in Dr.Jit's kernel history):
+        the excess is system time, huge pages faulted in. Our reading: the
+        renderer's allocator keeps freed blocks by size, so that run takes
+        memory no run of its size has held, which the system zeroes and maps.
+        Measured on the 2-core machine: the first 64-spp run of
         ``aaf-indirect`` on courtyard took 2.07 s against 1.30 s for every later
         seed, 1.5 s of it system time; across the workshop scene's suite the
         first repeat of seed 1 was up to 2.3x its second (``aaf-indirect``),

@@ -113,7 +113,9 @@ def intersect(world, ray, active=True, *, coherent=False):
     """The surface interaction of each lane's ``ray`` with ``world`` (every ``RayFlags.All`` field), as
     ``world.ray_intersect(ray, RayFlags.All, coherent, active)`` returns it, except on curves' segment ends.
 
-    Every ray this package traces goes through here. Mitsuba 3.9 (LLVM
+    Every surface interaction this package computes goes through here
+    (the visibility tests, ``ray_test`` and the light samples' shadow rays,
+    compute none and are Mitsuba's own). Mitsuba 3.9 (LLVM
     backend) reads one element past the end of a ``bsplinecurve``'s segment
     table for some hits: Dr.Jit's debug mode shows "out-of-bounds read from
     position 120 in an array of size 120" on the workshop scene's brush of
