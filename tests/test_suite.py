@@ -229,19 +229,19 @@ def test_an_interrupted_suite_resumes_where_it_stopped(tmp_path, monkeypatch):
 
     config = read_suite(suite_file(tmp_path))
     config = dataclasses.replace(config, scenes=config.scenes[:2], spps=(4,), seeds=(1, 2))
-    real = suite_module.run_scene
+    real = suite_module.run_in_child
 
-    def interrupted(comparison, out, cache_directory, **options):
+    def interrupted(function, comparison, out, cache_directory, **options):
         if comparison.kind == "dof":
             raise KeyboardInterrupt
-        return real(comparison, out, cache_directory, **options)
+        return real(function, comparison, out, cache_directory, **options)
 
-    monkeypatch.setattr(suite_module, "run_scene", interrupted)
+    monkeypatch.setattr(suite_module, "run_in_child", interrupted)
     with pytest.raises(KeyboardInterrupt):
         run_suite(config, tmp_path / "out", progress=False)
     assert (tmp_path / "out" / "cells" / "box.json").exists() and not (tmp_path / "out" / "index.html").exists()
     first = {path.name: path.stat().st_mtime_ns for path in (tmp_path / "out" / "scenes" / "box").rglob("*")}
-    monkeypatch.setattr(suite_module, "run_scene", real)
+    monkeypatch.setattr(suite_module, "run_in_child", real)
     result = run_suite(config, tmp_path / "out", progress=False)
     assert {path.name: path.stat().st_mtime_ns for path in (tmp_path / "out" / "scenes" / "box").rglob("*")
             if path.name in first} == first
@@ -280,3 +280,92 @@ def test_a_scene_that_cannot_be_compared_is_named_and_the_others_are_aggregated(
     assert "Scenes not compared" in page and "Scene blank: the reference has no contrast" in page
     record = json.loads((out / "suite.json").read_text())
     assert set(record["scenes"]) == {"box", "plane"} and "no contrast" in record["not_compared"]["blank"]
+
+
+CRASHING_PLUGIN = '''"""A plug-in that ends its process with a segmentation fault on the kind named by SPARSELT_TEST_CRASH_KIND."""
+import faulthandler
+import os
+
+import numpy as np
+
+from sparselt.methods import Method, MethodResult, register
+from sparselt.methods.pixel_samples import draw_pixel_samples
+
+
+@register
+class CrashOnKind(Method):
+    name = "crash-on-kind"
+    kinds = ("dof", "indirect", "path")
+    family = "test"
+    description = "path tracing, or a segmentation fault on the kind SPARSELT_TEST_CRASH_KIND names"
+
+    def run(self, context, budget, timer):
+        if os.environ.get("SPARSELT_TEST_CRASH_KIND") == context.kind:
+            faulthandler._sigsegv()  # a real crash in native code, as the renderer's was
+        with timer("sampling"):
+            samples = draw_pixel_samples(context, budget)
+        width, height = context.resolution
+        image = samples.values.reshape(height, width, samples.spp, 3).mean(axis=2).astype(np.float32)
+        return MethodResult(image=image, path_samples=int(samples.values.shape[0]))
+'''
+
+
+def crashing_suite(tmp_path, monkeypatch):
+    """Two scenes (box: path, plane: dof), PT and the crashing plug-in; the plug-in on the Python path."""
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / "crashing_methods.py").write_text(CRASHING_PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path / "plugins"))
+    path = suite_file(tmp_path)
+    text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
+    text = text.replace('methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]', 'methods = ["pt", "crash-on-kind"]')
+    path.write_text(text.split("[[scene]]\nname = \"plane-path\"")[0])
+    return path
+
+
+def test_a_scene_whose_comparison_crashes_is_not_compared_and_a_rerun_tries_it_again(tmp_path, monkeypatch, capfd):
+    """A segmentation fault in one scene's comparison (a plug-in's, in native code) ends that comparison's child
+    process only: the suite aggregates the other scene, names the crashed one with its signal and where it
+    happened, exits 2, and does not record it; the rerun, crash gone, compares it without running the other
+    scene again."""
+    path = crashing_suite(tmp_path, monkeypatch)
+    out = tmp_path / "out"
+    monkeypatch.setenv("SPARSELT_TEST_CRASH_KIND", "dof")
+    command = ["suite", str(path), "--out", str(out), "--no-progress", "--plugin", "crashing_methods"]
+    assert main(command) == 2
+    error = capfd.readouterr().err  # the child's standard error is the file's, not Python's sys.stderr
+    assert "scene 'plane' could not be compared: its comparison's process ended with signal 11 (SIGSEGV)" in error
+    assert "Fatal Python error: Segmentation fault" in error and "crashing_methods.py" in error  # where
+    assert "a rerun of the same command tries this scene again" in error
+    assert "1 crashed and a rerun of the same command tries it again" in error and "another --out" not in error
+    assert (out / "cells" / "box.json").exists() and not (out / "cells" / "plane.json").exists()
+    assert {row["scene"] for row in read_csv(out / "suite.csv")} == {"box"}
+    record = json.loads((out / "suite.json").read_text())
+    assert "SIGSEGV" in record["not_compared"]["plane"] and record["crashed"] == ["plane"]
+    box = {path.name: path.stat().st_mtime_ns for path in (out / "scenes" / "box").rglob("*")}
+    monkeypatch.delenv("SPARSELT_TEST_CRASH_KIND")
+    assert main(command) == 0
+    assert {row["scene"] for row in read_csv(out / "suite.csv")} == {"box", "plane"}
+    assert {path.name: path.stat().st_mtime_ns for path in (out / "scenes" / "box").rglob("*")
+            if path.name in box} == box
+    assert any(row["method"] == "crash-on-kind" and row["scene"] == "plane" for row in read_csv(out / "suite.csv"))
+    assert "not_compared" not in json.loads((out / "suite.json").read_text())
+
+
+def test_a_crash_on_a_cluster_worker_is_the_scenes_alone(tmp_path, monkeypatch):
+    """On a Dask cluster the scene's comparison runs in a child of the worker: its crash is recorded for that
+    scene, the worker lives on and compares the other scene."""
+    from dask.distributed import LocalCluster
+
+    from sparselt.methods import load_plugins
+
+    path = crashing_suite(tmp_path, monkeypatch)
+    monkeypatch.setenv("SPARSELT_TEST_CRASH_KIND", "dof")
+    load_plugins(["crashing_methods"])  # the client's plug-in: the worker imports it too
+    config = read_suite(path)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
+                      resources={"machine": 1}) as cluster:
+        result = run_suite(config, tmp_path / "out", progress=False, scheduler=cluster.scheduler_address)
+    assert set(result.not_compared) == {"plane"} and "signal 11 (SIGSEGV)" in result.not_compared["plane"]
+    assert result.crashed == ("plane",)
+    assert {row["scene"] for row in result.rows} == {"box"}
+    assert not (tmp_path / "out" / "cells" / "plane.json").exists()

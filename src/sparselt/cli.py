@@ -549,9 +549,13 @@ def _suite(arguments):
     if result.not_compared:
         for name, message in result.not_compared.items():
             print(f"sparselt suite: error: scene {name!r} could not be compared: {message}", file=sys.stderr)
+        recorded = len(result.not_compared) - len(result.crashed)
         print(f"sparselt suite: {len(result.not_compared)} of {len(config.scenes)} scenes could not be compared; "
-              "the others are aggregated without them (a suite without those scenes, or with their files changed, "
-              "is another run: give it another --out)", file=sys.stderr)
+              "the others are aggregated without them"
+              + (" (a suite without the scenes that could not be compared, or with their files changed, is another "
+                 "run: give it another --out)" if recorded else "")
+              + (f"; {len(result.crashed)} crashed and a rerun of the same command tries "
+                 f"{'them' if len(result.crashed) > 1 else 'it'} again" if result.crashed else ""), file=sys.stderr)
         return 2
     return 0
 

@@ -58,13 +58,18 @@ def record_command(arguments):
     _COMMAND[:] = [str(argument) for argument in arguments]
 
 
+def recorded_command():
+    """The command line :func:`environment_record` reports: the one :func:`record_command` set, else ``sys.argv``."""
+    return list(_COMMAND) or list(sys.argv)
+
+
 def environment_record():
     """Versions, git revision, platform, command line and time: attach to every output."""
     return {
         "versions": package_versions(),
         "git": git_revision(),
         "platform": platform.platform(),
-        "command": list(_COMMAND) or sys.argv,
+        "command": recorded_command(),
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
 

@@ -21,22 +21,34 @@ Output folder::
     references/            the references' 64-spp passes (cached, resumable; on the suite's file system, so
                            that every worker of a cluster sees them)
 
+Each scene's comparison runs in a child process
+(:func:`~sparselt.experiments.isolation.run_in_child`): a crash in native code
+there (a segmentation fault in the renderer) ends that scene's comparison
+only; the scene is reported as not compared, with how its process ended, and
+is not recorded, so a rerun of the same command tries it again (its
+comparison folder resumes). A scene whose comparison raises ``ValueError``
+(media, a black reference, an image without noise) is recorded as not
+compared, and a rerun says the same.
+
 On a Dask cluster (``scheduler``), the references render first, their passes
 spread over every worker; then each scene's comparison runs as one task on a
 worker that holds a whole machine (the worker resource ``machine``, so no
-other task shares it while it is timed), and the machine is recorded per scene.
+other task shares it while it is timed), in a child process of that worker,
+and the machine is recorded per scene.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import signal
 import socket
 import sys
 import time
 
 from ..provenance import environment_record
 from .compare import compare
+from .isolation import ChildCrashed, describe_exit, run_in_child
 from .protocol import Experiment, Unfinished, run_experiment
 from .suite_config import validate_suite
 
@@ -69,21 +81,18 @@ def run_scene(comparison, out, cache_directory, *, progress=False, threads=None)
                 "spp", "floor", "floor_trimmed", "passes", "met") if key in result.reference}}
 
 
-def scene_task(comparison, out, cache_directory):
-    """A scene's comparison as a Dask task: the renderer's and numba's threads set to the worker's own."""
+def scene_task(comparison, out, cache_directory, plugins=()):
+    """A scene's comparison as a Dask task: in a child process of the worker (a crash there is a
+    :class:`~sparselt.experiments.isolation.ChildCrashed` for this scene, the worker lives on), with the
+    renderer's and numba's threads set to the worker's own and the client's plug-in modules imported (they must be
+    importable on the worker)."""
     from dask.distributed import get_worker
 
-    from ..rendering.mitsuba import set_thread_count
+    from ..methods import load_plugins
 
+    load_plugins(plugins)
     threads = int(get_worker().state.nthreads)
-    set_thread_count(threads)
-    try:
-        import numba
-
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-    except ImportError:  # pragma: no cover - numba is a dependency
-        pass
-    return run_scene(comparison, out, cache_directory, threads=threads)
+    return run_in_child(run_scene, comparison, out, cache_directory, threads=threads, child_threads=threads)
 
 
 class SuiteExperiment(Experiment):
@@ -136,12 +145,16 @@ class SuiteExperiment(Experiment):
     def run_cell(self, name, state, folder):
         if self.progress:
             print(f"suite: scene {name} ({self.comparisons[name].kind})", file=sys.stderr)
-        try:
-            record = run_scene(self.comparisons[name], folder.path_of(f"{SCENES}/{name}"),
-                               folder.path_of(REFERENCES), progress=self.progress)
+        try:  # in a child process: a crash in native code ends that scene's comparison, not the suite
+            record = run_in_child(run_scene, self.comparisons[name], folder.path_of(f"{SCENES}/{name}"),
+                                  folder.path_of(REFERENCES), progress=self.progress)
         except ValueError as error:  # recorded: the suite goes on, and says so at the end
             print(f"suite: scene {name} cannot be compared: {error}", file=sys.stderr)
             return _not_compared(name, error)
+        except ChildCrashed as crash:  # not recorded: a rerun tries again
+            record = _crashed(name, crash)
+            print(f"suite: scene {name} cannot be compared: {record[NOT_COMPARED]}", file=sys.stderr)
+            return Unfinished(record)
         return dict(record, scene=name)
 
     def run_cells(self, folder, state, *, progress):
@@ -153,8 +166,10 @@ class SuiteExperiment(Experiment):
     def _run_on_cluster(self, folder, progress):
         """References across the cluster, then each scene's comparison on one whole machine."""
         from dask.distributed import as_completed
+        from distributed import KilledWorker
 
         from ..distributed import dask_client
+        from ..methods import plugin_modules
         from .comparison_reference import ComparisonReference
 
         names = self.plan()
@@ -178,7 +193,7 @@ class SuiteExperiment(Experiment):
             futures = {}
             for name in missing:
                 future = client.submit(scene_task, self.comparisons[name], folder.path_of(f"{SCENES}/{name}"),
-                                       folder.path_of(REFERENCES), resources={MACHINE_RESOURCE: 1}, pure=False,
+                                       folder.path_of(REFERENCES), plugin_modules(), resources={MACHINE_RESOURCE: 1}, pure=False,
                                        key=f"sparselt-suite-{name}-{os.getpid()}-{time.monotonic_ns()}")
                 futures[future] = name
             for future in as_completed(list(futures)):
@@ -187,8 +202,13 @@ class SuiteExperiment(Experiment):
                     record = dict(future.result(), scene=name)
                 except ValueError as error:
                     record = _not_compared(name, error)
-                folder.record_cell(name, record)
-                records[name] = folder.cell(name)
+                except (ChildCrashed, KilledWorker) as crash:
+                    record = _crashed(name, crash)
+                if CRASHED in record:
+                    records[name] = record  # not recorded: a rerun tries again
+                else:
+                    folder.record_cell(name, record)
+                    records[name] = folder.cell(name)
                 if NOT_COMPARED in record:
                     say(f"suite: scene {name} cannot be compared: {record[NOT_COMPARED]}")
                 else:
@@ -208,11 +228,35 @@ class SuiteExperiment(Experiment):
             raise ValueError("no scene of the suite could be compared: " + "; ".join(
                 f"scene {name!r}: {message}" for name, message in not_compared.items()))
         return write_suite_outputs(folder, self.config, records, seconds=time.perf_counter() - self.started,
-                                   not_compared=not_compared)
+                                   not_compared=not_compared,
+                                   crashed=[name for name, record in records.items() if CRASHED in record])
 
 
 #: A scene's cell record key holding why its comparison could not be made (its message).
 NOT_COMPARED = "not_compared"
+
+
+#: A crashed scene's record key: how its process ended (such a record is not kept: a rerun tries the scene again).
+CRASHED = "crashed"
+
+
+def _crashed(name, crash):
+    """The record of scene ``name`` whose comparison's process died (``crash``: a
+    :class:`~sparselt.experiments.isolation.ChildCrashed`, or Dask's ``KilledWorker`` for a worker that died)."""
+    if isinstance(crash, ChildCrashed):
+        how = describe_exit(crash.returncode)
+        if crash.signal_number in (signal.SIGSEGV, signal.SIGBUS, signal.SIGILL, signal.SIGFPE, signal.SIGABRT):
+            where = ": a crash in native code (the renderer or a compiled kernel; its stack is above, on standard error)"
+        elif crash.signal_number == signal.SIGKILL:
+            where = ": killed (by the system when memory runs out, or by a user)"
+        else:
+            where = " and no result"
+        text = f"its comparison's process ended with {how}{where}"
+    else:
+        how = "worker died"
+        text = f"the Dask worker running its comparison died repeatedly ({crash})"
+    return {"scene": name, NOT_COMPARED: f"{text}; not recorded: a rerun of the same command tries this scene "
+            "again, resuming its comparison from what it finished", CRASHED: how}
 
 
 def _not_compared(name, error):

@@ -47,6 +47,8 @@ class SuiteResult:
     seconds: float = 0.0
     #: Scene name -> why its comparison could not be made (left out of every table).
     not_compared: dict = field(default_factory=dict)
+    #: The scenes of ``not_compared`` whose comparison's process crashed (not recorded: a rerun tries them again).
+    crashed: tuple = ()
 
     def table(self):
         """The aggregate as printed text."""
@@ -230,11 +232,12 @@ def write_suite_tables(folder, scenes, kinds, machines, spps, **aggregate_option
     return aggregated, suite_rows, table
 
 
-def write_suite_outputs(folder, config, records, *, seconds, not_compared=None):
+def write_suite_outputs(folder, config, records, *, seconds, not_compared=None, crashed=()):
     """Every report file of a finished suite (see :mod:`sparselt.experiments.suite`); returns a :class:`SuiteResult`.
 
     ``not_compared``: scene name -> why its comparison could not be made; those scenes are left out of every table
-    and listed in their own section of the page and in ``suite.json``."""
+    and listed in their own section of the page and in ``suite.json``. ``crashed``: those of them whose
+    comparison's process crashed (``suite.json``'s ``crashed``)."""
     from ..results import judged_comparison
     from .suite import SCENES, SUITE_FILE
 
@@ -278,9 +281,13 @@ def write_suite_outputs(folder, config, records, *, seconds, not_compared=None):
                   bootstrap={"resamples": RESAMPLES, "seed": BOOTSTRAP_SEED, "confidence": CONFIDENCE,
                              "levels": "scenes, then seeds within each scene"},
                   relmse_epsilon=RELMSE_EPSILON)
+    record.pop("not_compared", None)
+    record.pop("crashed", None)
     if not_compared:
         record["not_compared"] = not_compared
+    if crashed:
+        record["crashed"] = list(crashed)
     folder.write_json(SUITE_FILE, record)
     return SuiteResult(out=folder.path, aggregate=aggregated, rows=suite_rows, seconds=seconds,
-                       not_compared=not_compared)
+                       not_compared=not_compared, crashed=tuple(crashed))
 

@@ -51,6 +51,7 @@ from .registry import (
     load_plugins,
     method_class,
     method_names,
+    plugin_modules,
     register,
     resolve_method_options,
 )
@@ -59,6 +60,6 @@ from .variants import parse_method_variant, variant_file_name
 __all__ = ["ENTRY_POINT_GROUP", "TIME_PHASES", "WARM_UP_SEED", "Budget", "ComparisonContext", "FilmResolution",
            "Method", "MethodOptions", "MethodResult", "MethodSetup", "MinimumSpp", "Option", "PhaseTimer",
            "PluginError", "Requirement", "ResolutionMultiple", "ThinLens", "TileDividesGrid", "baseline_name",
-           "get_method", "load_plugins", "method_class", "method_names", "option", "parse_method_variant",
+           "get_method", "load_plugins", "method_class", "method_names", "plugin_modules", "option", "parse_method_variant",
            "register", "resolve_method_options", "resolve_options", "run_timed", "variant_file_name",
            "warm_up"]

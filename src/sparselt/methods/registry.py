@@ -190,6 +190,18 @@ def load_plugins(modules=()):
     return tuple(name for name, source in _SOURCES.items() if source in names)
 
 
+def plugin_modules():
+    """The modules of every registered method class defined outside sparselt (plug-ins, methods a script
+    registered), in registration order: what another process imports to know the same methods."""
+    _load_builtin()
+    modules = []
+    for cls in _METHODS.values():
+        module = cls.__module__
+        if module.split(".")[0] != "sparselt" and module != "__main__" and module not in modules:
+            modules.append(module)
+    return tuple(modules)
+
+
 def method_names():
     """Registered method names, in registration order (built-ins first)."""
     _load_builtin()
@@ -295,4 +307,5 @@ def _load_builtin():
 
 
 __all__ = ["ENTRY_POINT_GROUP", "PluginError", "baseline_name", "check_method_class", "get_method",
-           "load_plugins", "method_class", "method_names", "method_source", "register", "resolve_method_options"]
+           "load_plugins", "method_class", "method_names", "method_source", "plugin_modules", "register",
+           "resolve_method_options"]

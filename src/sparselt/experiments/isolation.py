@@ -1,0 +1,238 @@
+"""One piece of work in a fresh Python process, so that a crash in native code ends that piece alone (issue 37).
+
+A segmentation fault in the renderer or in a compiled kernel ends the process
+it happens in, with no Python exception to catch: in the sixteenth session
+Mitsuba 3.9 read one past a B-spline curve's segment table, and the whole
+``suite`` run ended with nothing recorded for any scene after it. A suite now
+runs each scene's comparison through :func:`run_in_child`: the crash ends the
+child, and the parent raises :class:`ChildCrashed`, which the suite records
+as that scene's reason for not being compared.
+
+How parent and child talk
+-------------------------
+The parent pickles the call (a module-level function, its arguments) into a
+temporary folder beside what the child needs to resolve it the way the
+parent would: the parent's ``sys.path``, the modules of every method
+registered outside sparselt (``--plugin`` modules, methods a script
+registered), the command line the outputs record, the Mitsuba variant and
+the renderer's and numba's thread counts. The child
+(``python -m sparselt.experiments.isolation TASK RESULT``) turns on
+``faulthandler`` (every thread's stack on standard error if it crashes),
+restores that state, makes the call, and pickles ``("value", result)`` or
+``("error", exception)`` into ``RESULT``. Standard output and standard error
+are the parent's, so progress bars and error messages appear as before. A
+child that ends without a result (a signal, or ``os._exit``) is a
+:class:`ChildCrashed`; an exception in the child is raised again in the
+parent, with the child's traceback as its note.
+
+:mod:`sparselt.experiments.integration_child` is another child process, with
+a protocol of its own: it measures the child's memory peak, which needs a
+process per measurement rather than per piece of work.
+"""
+
+from __future__ import annotations
+
+import faulthandler
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import tempfile
+import traceback
+
+CHILD_MODULE = "sparselt.experiments.isolation"
+#: Seconds the parent gives an interrupted child to end on its own (its finished work kept) before killing it.
+INTERRUPT_GRACE_SECONDS = 30.0
+
+
+class ChildCrashed(RuntimeError):
+    """The child process ended without a result: killed by a signal (``signal_number``) or exited with a status.
+
+    Attributes
+    ----------
+    returncode : int
+        The child's exit status as :class:`subprocess.Popen` reports it (``-N``: signal ``N``).
+    """
+
+    def __init__(self, message, returncode):
+        super().__init__(message)
+        self.returncode = returncode
+
+    def __reduce__(self):
+        return type(self), (str(self), self.returncode)
+
+    @property
+    def signal_number(self):
+        """The signal that ended the child, or None."""
+        return -self.returncode if self.returncode < 0 else None
+
+
+def describe_exit(returncode):
+    """``'signal 11 (SIGSEGV)'`` or ``'exit status 3'``: how a process ended, in words."""
+    if returncode < 0:
+        try:
+            name = signal.Signals(-returncode).name
+        except ValueError:
+            name = "unknown signal"
+        return f"signal {-returncode} ({name})"
+    return f"exit status {returncode}"
+
+
+def _package_root():
+    """The folder holding the ``sparselt`` package this process imported (the child imports the same one)."""
+    import sparselt
+
+    return os.path.dirname(os.path.dirname(os.path.abspath(sparselt.__file__)))
+
+
+def _thread_counts():
+    """The renderer's and numba's thread counts of this process, where they are started (else None)."""
+    renderer = numba_threads = None
+    if "drjit" in sys.modules:
+        renderer = int(sys.modules["drjit"].thread_count())
+    if "numba" in sys.modules:
+        numba_threads = int(sys.modules["numba"].get_num_threads())
+    return renderer, numba_threads
+
+
+def _state(threads):
+    """What the child restores before the call (see the module docstring)."""
+    from ..methods import plugin_modules
+    from ..provenance import recorded_command
+
+    renderer, numba_threads = _thread_counts()
+    if threads is not None:
+        renderer = numba_threads = int(threads)
+    runtime = sys.modules.get("sparselt.rendering.mitsuba.runtime")
+    variant = runtime.mi.variant() if runtime is not None and runtime.mi is not None else None
+    return {"sys_path": list(sys.path), "modules": list(plugin_modules()), "command": recorded_command(),
+            "variant": variant, "renderer_threads": renderer, "numba_threads": numba_threads}
+
+
+def run_in_child(function, *arguments, child_threads=None, **keywords):
+    """Call ``function(*arguments, **keywords)`` in a fresh Python process and return its result.
+
+    Parameters
+    ----------
+    function : callable
+        A module-level function (pickled by name).
+    *arguments, **keywords
+        Its arguments (pickled).
+    child_threads : int, optional
+        The renderer's and numba's thread count in the child (default: this process's).
+
+    Returns
+    -------
+    object
+        What ``function`` returned.
+
+    Raises
+    ------
+    ChildCrashed
+        The child ended without a result (a signal such as SIGSEGV, or an exit without one).
+    Exception
+        What ``function`` raised in the child, raised again here (its traceback attached as a note).
+    KeyboardInterrupt
+        Interrupted while waiting: the child is interrupted too, given
+        :data:`INTERRUPT_GRACE_SECONDS` to end on its own, then killed.
+    """
+    call = pickle.dumps((function, arguments, keywords), protocol=pickle.HIGHEST_PROTOCOL)
+    task = {"state": _state(child_threads), "call": call}
+    environment = dict(os.environ)
+    environment["PYTHONPATH"] = os.pathsep.join(
+        [_package_root()] + [path for path in environment.get("PYTHONPATH", "").split(os.pathsep) if path])
+    with tempfile.TemporaryDirectory(prefix="sparselt-child-") as directory:
+        task_path, result_path = os.path.join(directory, "task.pickle"), os.path.join(directory, "result.pickle")
+        with open(task_path, "wb") as handle:
+            pickle.dump(task, handle, protocol=pickle.HIGHEST_PROTOCOL)
+        process = subprocess.Popen([sys.executable, "-m", CHILD_MODULE, task_path, result_path],
+                                   env=environment, stdin=subprocess.DEVNULL)
+        try:
+            returncode = process.wait()
+        except BaseException:
+            _stop(process)
+            raise
+        if not os.path.exists(result_path):
+            raise ChildCrashed(f"the child process ended with {describe_exit(returncode)} and no result",
+                               returncode)
+        with open(result_path, "rb") as handle:
+            outcome, value = pickle.load(handle)
+    if outcome == "value":
+        return value
+    raise value
+
+
+def _stop(process):
+    """Interrupt ``process`` (its own Ctrl-C handling keeps finished work), kill it if it does not end."""
+    if process.poll() is not None:
+        return
+    try:
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=INTERRUPT_GRACE_SECONDS)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
+def _restore(state):
+    for path in reversed(state["sys_path"]):
+        if path not in sys.path:
+            sys.path.insert(0, path)
+    from ..provenance import record_command
+
+    record_command(state["command"])
+    if state["variant"] is not None:
+        from ..rendering.mitsuba.runtime import initialize
+
+        initialize(state["variant"])
+    if state["renderer_threads"] is not None:
+        from ..rendering.mitsuba.runtime import set_thread_count
+
+        set_thread_count(state["renderer_threads"])
+    if state["numba_threads"] is not None:
+        import numba
+
+        numba.set_num_threads(min(state["numba_threads"], numba.config.NUMBA_NUM_THREADS))
+    from ..methods import PluginError, load_plugins
+
+    for module in state["modules"]:  # one the child cannot import is reported and left out: the call may not need it
+        try:
+            load_plugins([module])
+        except PluginError as error:
+            print(f"sparselt: a child process left out plug-in module {module!r}, which the parent had imported: "
+                  f"{error}", file=sys.stderr)
+
+
+def _picklable(error):
+    """``error`` if it survives pickling both ways, else a RuntimeError carrying its type and message."""
+    try:
+        pickle.loads(pickle.dumps(error))
+        return error
+    except Exception:  # noqa: BLE001  (any failure to pickle)
+        return RuntimeError(f"{type(error).__name__}: {error}")
+
+
+def child_main(task_path, result_path):
+    """The child: restore the parent's state, make the call, write its outcome (see the module docstring)."""
+    faulthandler.enable(file=sys.stderr, all_threads=True)
+    with open(task_path, "rb") as handle:
+        task = pickle.load(handle)
+    try:
+        _restore(task["state"])
+        function, arguments, keywords = pickle.loads(task["call"])
+        outcome = ("value", function(*arguments, **keywords))
+    except Exception as error:  # noqa: BLE001  (raised again in the parent)
+        where = "".join(traceback.format_exception(error)).rstrip()
+        error = _picklable(error)
+        error.add_note("in the child process:\n" + where)
+        outcome = ("error", error)
+    temporary = result_path + ".partial"
+    with open(temporary, "wb") as handle:
+        pickle.dump(outcome, handle, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(temporary, result_path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(child_main(*sys.argv[1:3]))
