@@ -94,7 +94,7 @@ def test_the_child_measures_a_known_allocation_and_a_known_time():
     import subprocess
     import sys
 
-    from sparselt.experiments.integration_child import child_environment
+    from sparselt.experiments.isolation import child_environment
 
     script = CHILD_WITH_BALLAST.format(ballast=BALLAST_BYTES, sleep=SLEEP_SECONDS)
     completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,

@@ -342,6 +342,9 @@ def test_a_scene_whose_comparison_crashes_is_not_compared_and_a_rerun_tries_it_a
     record = json.loads((out / "suite.json").read_text())
     assert "SIGSEGV" in record["not_compared"]["plane"] and record["crashed"] == ["plane"]
     box = {path.name: path.stat().st_mtime_ns for path in (out / "scenes" / "box").rglob("*")}
+    assert main(command) == 2  # the rerun tries the crashed scene again (and says nothing of a complete folder)
+    printed = capfd.readouterr()
+    assert "signal 11 (SIGSEGV)" in printed.err and "is complete" not in printed.out
     monkeypatch.delenv("SPARSELT_TEST_CRASH_KIND")
     assert main(command) == 0
     assert {row["scene"] for row in read_csv(out / "suite.csv")} == {"box", "plane"}

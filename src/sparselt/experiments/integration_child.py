@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import gc
 import json
-import os
 import subprocess
 import sys
 import time
@@ -53,6 +52,7 @@ import numpy as np
 from ..fourier.integration import integrate
 from ..measurement import reset_peak, status_bytes
 from .integration_signal import KEEP_AXES, agreement_signal, contributing_coefficients, thesis_signal
+from .isolation import child_environment
 
 CHILD_MODULE = "sparselt.experiments.integration_child"
 RESULT_PREFIX = "INTEGRATION-BENCHMARK-RESULT "
@@ -147,20 +147,6 @@ def child_main(arguments):
     sys.stdout.write(RESULT_PREFIX + json.dumps(record) + "\n")
     sys.stdout.flush()
     return 0
-
-
-def child_environment():
-    """The parent's environment with this source tree first on ``PYTHONPATH``.
-
-    Returns
-    -------
-    dict
-        Environment variables for the child process.
-    """
-    environment = dict(os.environ)
-    source = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    environment["PYTHONPATH"] = os.pathsep.join(filter(None, [source, environment.get("PYTHONPATH")]))
-    return environment
 
 
 def run_child(task, module=CHILD_MODULE):

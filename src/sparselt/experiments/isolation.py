@@ -42,7 +42,9 @@ import tempfile
 import traceback
 
 CHILD_MODULE = "sparselt.experiments.isolation"
-#: Seconds the parent gives an interrupted child to end on its own (its finished work kept) before killing it.
+#: Seconds an interrupted parent waits for its child to end on its own (a Ctrl-C at the terminal reaches both).
+OWN_END_SECONDS = 5.0
+#: Seconds the parent then gives the child it interrupted to end (its finished work kept) before killing it.
 INTERRUPT_GRACE_SECONDS = 30.0
 
 
@@ -79,11 +81,20 @@ def describe_exit(returncode):
     return f"exit status {returncode}"
 
 
-def _package_root():
-    """The folder holding the ``sparselt`` package this process imported (the child imports the same one)."""
-    import sparselt
+def child_environment():
+    """This process's environment with the folder holding the ``sparselt`` package it imported first on
+    ``PYTHONPATH``: a child started with ``python -m sparselt...`` imports the same package (also the
+    integration benchmark's child, :mod:`sparselt.experiments.integration_child`).
 
-    return os.path.dirname(os.path.dirname(os.path.abspath(sparselt.__file__)))
+    Returns
+    -------
+    dict
+        Environment variables for the child process.
+    """
+    environment = dict(os.environ)
+    source = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    environment["PYTHONPATH"] = os.pathsep.join(filter(None, [source, environment.get("PYTHONPATH")]))
+    return environment
 
 
 def _thread_counts():
@@ -134,20 +145,18 @@ def run_in_child(function, *arguments, child_threads=None, **keywords):
     Exception
         What ``function`` raised in the child, raised again here (its traceback attached as a note).
     KeyboardInterrupt
-        Interrupted while waiting: the child is interrupted too, given
-        :data:`INTERRUPT_GRACE_SECONDS` to end on its own, then killed.
+        Interrupted while waiting: the child is given :data:`OWN_END_SECONDS`
+        to end on its own (a Ctrl-C at the terminal reached it too), then
+        interrupted and given :data:`INTERRUPT_GRACE_SECONDS`, then killed.
     """
     call = pickle.dumps((function, arguments, keywords), protocol=pickle.HIGHEST_PROTOCOL)
     task = {"state": _state(child_threads), "call": call}
-    environment = dict(os.environ)
-    environment["PYTHONPATH"] = os.pathsep.join(
-        [_package_root()] + [path for path in environment.get("PYTHONPATH", "").split(os.pathsep) if path])
     with tempfile.TemporaryDirectory(prefix="sparselt-child-") as directory:
         task_path, result_path = os.path.join(directory, "task.pickle"), os.path.join(directory, "result.pickle")
         with open(task_path, "wb") as handle:
             pickle.dump(task, handle, protocol=pickle.HIGHEST_PROTOCOL)
         process = subprocess.Popen([sys.executable, "-m", CHILD_MODULE, task_path, result_path],
-                                   env=environment, stdin=subprocess.DEVNULL)
+                                   env=child_environment(), stdin=subprocess.DEVNULL)
         try:
             returncode = process.wait()
         except BaseException:
@@ -164,15 +173,18 @@ def run_in_child(function, *arguments, child_threads=None, **keywords):
 
 
 def _stop(process):
-    """Interrupt ``process`` (its own Ctrl-C handling keeps finished work), kill it if it does not end."""
-    if process.poll() is not None:
-        return
-    try:
-        process.send_signal(signal.SIGINT)
-        process.wait(timeout=INTERRUPT_GRACE_SECONDS)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait()
+    """End ``process`` after its parent was interrupted: a Ctrl-C at the terminal reached it too, so first let it
+    end on its own (its Ctrl-C handling keeps finished work); else interrupt it; kill it if it still runs."""
+    for send in (None, signal.SIGINT):
+        if send is not None:
+            process.send_signal(send)
+        try:
+            process.wait(timeout=OWN_END_SECONDS if send is None else INTERRUPT_GRACE_SECONDS)
+            return
+        except subprocess.TimeoutExpired:
+            continue
+    process.kill()
+    process.wait()
 
 
 def _restore(state):
@@ -222,6 +234,8 @@ def child_main(task_path, result_path):
         _restore(task["state"])
         function, arguments, keywords = pickle.loads(task["call"])
         outcome = ("value", function(*arguments, **keywords))
+    except KeyboardInterrupt:  # the parent was interrupted too and reports it; no traceback from here
+        return 130
     except Exception as error:  # noqa: BLE001  (raised again in the parent)
         where = "".join(traceback.format_exception(error)).rstrip()
         error = _picklable(error)

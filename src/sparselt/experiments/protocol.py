@@ -116,7 +116,8 @@ class Experiment:
         The default schedule runs :meth:`plan`'s cells once each and hands the
         records to :meth:`report` as stored (read back from ``cells/``, so a
         fresh run and a resumed one report the same values); an
-        :class:`Unfinished` outcome is handed on as returned and not recorded.
+        :class:`Unfinished` outcome is handed on as returned and not recorded
+        (the folder's ``attempted`` counts it).
         :meth:`cell_finished` hears of every planned cell, done earlier or
         now, in plan order. An experiment whose cells are timed several times
         overrides it to run them in rounds over every cell
@@ -139,6 +140,7 @@ class Experiment:
                 outcome = self.run_cell(name, state, folder)
                 if isinstance(outcome, Unfinished):
                     records[name] = outcome.record
+                    folder.attempted += 1
                 else:
                     folder.record_cell(name, outcome)
                     records[name] = folder.cell(name)
@@ -216,7 +218,7 @@ def run_experiment(experiment, out, *, overwrite=False, progress=True):
         records = experiment.run_cells(folder, state, progress=progress)
         result = experiment.report(folder, state, records)
         folder.complete(**dict({"seconds": time.perf_counter() - started}, **experiment.summary(result)))
-    if was_complete and not folder.recorded:
+    if was_complete and not folder.recorded and not folder.attempted:
         print(f"{experiment.kind}: {folder.path} is complete: an earlier run of the same command did every cell, "
               "none was run again (the report was written again)")
     return result

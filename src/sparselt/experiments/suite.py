@@ -193,8 +193,8 @@ class SuiteExperiment(Experiment):
             futures = {}
             for name in missing:
                 future = client.submit(scene_task, self.comparisons[name], folder.path_of(f"{SCENES}/{name}"),
-                                       folder.path_of(REFERENCES), plugin_modules(), resources={MACHINE_RESOURCE: 1}, pure=False,
-                                       key=f"sparselt-suite-{name}-{os.getpid()}-{time.monotonic_ns()}")
+                                       folder.path_of(REFERENCES), plugin_modules(), resources={MACHINE_RESOURCE: 1},
+                                       pure=False, key=f"sparselt-suite-{name}-{os.getpid()}-{time.monotonic_ns()}")
                 futures[future] = name
             for future in as_completed(list(futures)):
                 name = futures[future]
@@ -206,6 +206,7 @@ class SuiteExperiment(Experiment):
                     record = _crashed(name, crash)
                 if CRASHED in record:
                     records[name] = record  # not recorded: a rerun tries again
+                    folder.attempted += 1
                 else:
                     folder.record_cell(name, record)
                     records[name] = folder.cell(name)

@@ -162,6 +162,8 @@ class ExperimentFolder:
         self._files = set()
         #: Cells and repeats recorded by this run (:meth:`record_cell`, :meth:`record_repeat`).
         self.recorded = 0
+        #: Cells this run attempted and did not keep (an experiment's ``Unfinished`` outcomes: tried again on a rerun).
+        self.attempted = 0
 
     # ----------------------------------------------------------------- inspection (changes nothing)
     @property
