@@ -6,7 +6,7 @@ import signal
 
 import pytest
 
-from sparselt.experiments.isolation import ChildCrashed, describe_exit, run_in_child
+from sparselt.experiments.isolation import ChildCrashed, describe_exit, exit_cause, run_in_child
 
 
 def test_the_childs_value_comes_back():
@@ -32,6 +32,7 @@ def test_an_exit_without_a_result_is_a_crash_naming_its_status():
         run_in_child(os._exit, 3)
     assert raised.value.signal_number is None
     assert describe_exit(-9) == "signal 9 (SIGKILL)"
+    assert "native code" in exit_cause(-11) and "memory" in exit_cause(-9) and exit_cause(3) == ""
 
 
 def test_the_child_has_the_parents_thread_count_unless_told():

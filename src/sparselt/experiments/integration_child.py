@@ -52,7 +52,7 @@ import numpy as np
 from ..fourier.integration import integrate
 from ..measurement import reset_peak, status_bytes
 from .integration_signal import KEEP_AXES, agreement_signal, contributing_coefficients, thesis_signal
-from .isolation import child_environment
+from .isolation import child_environment, describe_exit, exit_cause
 
 CHILD_MODULE = "sparselt.experiments.integration_child"
 RESULT_PREFIX = "INTEGRATION-BENCHMARK-RESULT "
@@ -175,9 +175,8 @@ def run_child(task, module=CHILD_MODULE):
         if line.startswith(RESULT_PREFIX) and completed.returncode == 0:
             return json.loads(line[len(RESULT_PREFIX):]), None
     if completed.returncode < 0:
-        signal_number = -completed.returncode
-        hint = " (killed: out of memory?)" if signal_number == 9 else ""
-        return None, f"child process ended by signal {signal_number}{hint}"
+        cause = exit_cause(completed.returncode)
+        return None, f"child process ended by {describe_exit(completed.returncode)}" + (f": {cause}" if cause else "")
     lines = [line for line in completed.stderr.strip().splitlines() if line.strip()]
     return None, f"child process failed (exit {completed.returncode}): {lines[-1] if lines else 'no message'}"
 

@@ -81,6 +81,19 @@ def describe_exit(returncode):
     return f"exit status {returncode}"
 
 
+#: Signals of a crash in native code: a bad memory access, an illegal instruction, an arithmetic fault, an abort.
+CRASH_SIGNALS = (signal.SIGSEGV, signal.SIGBUS, signal.SIGILL, signal.SIGFPE, signal.SIGABRT)
+
+
+def exit_cause(returncode):
+    """What a process's end by ``returncode`` most likely means, in words, or ``''`` where it says nothing more."""
+    if returncode < 0 and -returncode in CRASH_SIGNALS:
+        return "a crash in native code (the renderer or a compiled kernel; its stack is on standard error)"
+    if returncode == -signal.SIGKILL:
+        return "killed (by the system when memory runs out, or by a user)"
+    return ""
+
+
 def child_environment():
     """This process's environment with the folder holding the ``sparselt`` package it imported first on
     ``PYTHONPATH``: a child started with ``python -m sparselt...`` imports the same package (also the

@@ -41,14 +41,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import signal
 import socket
 import sys
 import time
 
 from ..provenance import environment_record
 from .compare import compare
-from .isolation import ChildCrashed, describe_exit, run_in_child
+from .isolation import ChildCrashed, describe_exit, exit_cause, run_in_child
 from .protocol import Experiment, Unfinished, run_experiment
 from .suite_config import validate_suite
 
@@ -246,13 +245,8 @@ def _crashed(name, crash):
     :class:`~sparselt.experiments.isolation.ChildCrashed`, or Dask's ``KilledWorker`` for a worker that died)."""
     if isinstance(crash, ChildCrashed):
         how = describe_exit(crash.returncode)
-        if crash.signal_number in (signal.SIGSEGV, signal.SIGBUS, signal.SIGILL, signal.SIGFPE, signal.SIGABRT):
-            where = ": a crash in native code (the renderer or a compiled kernel; its stack is above, on standard error)"
-        elif crash.signal_number == signal.SIGKILL:
-            where = ": killed (by the system when memory runs out, or by a user)"
-        else:
-            where = " and no result"
-        text = f"its comparison's process ended with {how}{where}"
+        cause = exit_cause(crash.returncode)
+        text = f"its comparison's process ended with {how}" + (f": {cause}" if cause else " and no result")
     else:
         how = "worker died"
         text = f"the Dask worker running its comparison died repeatedly ({crash})"
