@@ -219,13 +219,19 @@ def _restore(state):
         import numba
 
         numba.set_num_threads(min(state["numba_threads"], numba.config.NUMBA_NUM_THREADS))
+    load_importable_plugins(state["modules"])
+
+
+def load_importable_plugins(modules):
+    """Import the plug-in ``modules`` another process had registered; one this process cannot import is reported
+    on standard error and left out (the work may not need its methods; if it does, it says which is unknown)."""
     from ..methods import PluginError, load_plugins
 
-    for module in state["modules"]:  # one the child cannot import is reported and left out: the call may not need it
+    for module in modules:
         try:
             load_plugins([module])
         except PluginError as error:
-            print(f"sparselt: a child process left out plug-in module {module!r}, which the parent had imported: "
+            print(f"sparselt: plug-in module {module!r}, which the parent process had imported, is left out here: "
                   f"{error}", file=sys.stderr)
 
 
@@ -241,6 +247,7 @@ def _picklable(error):
 def child_main(task_path, result_path):
     """The child: restore the parent's state, make the call, write its outcome (see the module docstring)."""
     faulthandler.enable(file=sys.stderr, all_threads=True)
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # a parent that ignores Ctrl-C can still interrupt us
     with open(task_path, "rb") as handle:
         task = pickle.load(handle)
     try:

@@ -47,7 +47,7 @@ import time
 
 from ..provenance import environment_record
 from .compare import compare
-from .isolation import ChildCrashed, describe_exit, exit_cause, run_in_child
+from .isolation import ChildCrashed, describe_exit, exit_cause, load_importable_plugins, run_in_child
 from .protocol import Experiment, Unfinished, run_experiment
 from .suite_config import validate_suite
 
@@ -87,9 +87,7 @@ def scene_task(comparison, out, cache_directory, plugins=()):
     importable on the worker)."""
     from dask.distributed import get_worker
 
-    from ..methods import load_plugins
-
-    load_plugins(plugins)
+    load_importable_plugins(plugins)
     threads = int(get_worker().state.nthreads)
     return run_in_child(run_scene, comparison, out, cache_directory, threads=threads, child_threads=threads)
 
