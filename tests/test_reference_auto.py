@@ -2,8 +2,10 @@
 reference they need, and ``--reference-spp auto`` on the same folder renders the passes that reference needs,
 measures every cell again from its saved image, and judges them.
 
-Real renders on the Cornell box at 24x24 (direct light, depth 2): a 128-spp reference against methods at 256 spp,
-whose own error is half the reference's.
+Real renders on the Cornell box at 24x24 (direct light, depth 2): a 128-spp reference against methods at 512 spp,
+whose own error is a quarter of the reference's. (At 256 spp the method's own measured error was about twice the
+reference's floor, at the edge of :data:`REFERENCE_LIMITED_SHARE`; the verdict then rested on PT's value at the
+method's time, and a loaded machine's timing, which moved PT's ladder, once turned it ``within noise``.)
 """
 
 import json
@@ -13,11 +15,13 @@ import pytest
 from sparselt.cli import main
 from sparselt.experiments.compare import ComparisonConfig, compare
 from sparselt.experiments.comparison_reference import AUTO_FLOOR_SHARE
+from sparselt.experiments.equal_time import REFERENCE_LIMITED_SHARE
 from sparselt.report.comparison import verdict_sentence
 from sparselt.results import load_summary
 
+SPP = 512
 NOISY = dict(scene="cornell-box", kind="path", max_depth=2, resolution=(24, 24), methods=("pt", "samples-mean"),
-             spps=(256,), seeds=(1, 2), timing_repeats=1, reference_spp=128)
+             spps=(SPP,), seeds=(1, 2), timing_repeats=1, reference_spp=128)
 
 
 @pytest.fixture(scope="module")
@@ -36,6 +40,8 @@ def test_a_noisy_reference_leaves_the_cell_reference_limited_with_the_spp_it_nee
     cell = next(entry for entry in noisy.summary if entry["method"] == "samples-mean")
     assert record["reference"]["spp"] == 128 and record["reference"]["passes"] == 2
     assert cell["verdict"] == "reference-limited"
+    floor = next(row for row in noisy.rows if row["method"] == "samples-mean")["reference_relmse_floor_trimmed"]
+    assert floor >= 1.5 * REFERENCE_LIMITED_SHARE * cell["relmse_trimmed"]  # limited by its own error, with margin
     assert cell["relmse_trimmed_ratio"] == "" and cell["speedup_equal_quality"] == ""
     assert isinstance(cell["reference_spp_needed"], int) and cell["reference_spp_needed"] > 128
     sentence = verdict_sentence("samples-mean", noisy.summary)
@@ -52,8 +58,8 @@ def test_auto_on_the_same_folder_measures_every_cell_again_and_judges_it(noisy_t
     assert cell["verdict"] in ("wins", "loses", "within noise")
     assert isinstance(cell["speedup_equal_quality"], float) and cell["speedup_bound"] in ("", ">", "<")
     summary = load_summary(out)  # the xarray view agrees with the run
-    assert str(summary["verdict"].sel({"method": "samples-mean", "spp": 256}).item()) == cell["verdict"]
-    assert float(summary["bias_fraction"].sel({"method": "samples-mean", "spp": 256})) >= 0
+    assert str(summary["verdict"].sel({"method": "samples-mean", "spp": SPP}).item()) == cell["verdict"]
+    assert float(summary["bias_fraction"].sel({"method": "samples-mean", "spp": SPP})) >= 0
 
 
 @pytest.mark.parametrize("arguments, message", [
