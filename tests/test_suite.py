@@ -275,7 +275,9 @@ def test_a_scene_that_cannot_be_compared_is_named_and_the_others_are_aggregated(
         assert "scene 'blank' could not be compared: the reference has no contrast" in message
         assert "1 of 3 scenes could not be compared" in message and "another --out" in message
     assert {row["scene"] for row in read_csv(out / "suite.csv")} == {"box", "plane"}
-    assert {row["scenes_judged"] for row in read_csv(out / "aggregate.csv")} <= {"1", "2"}
+    # Both other scenes are aggregated; how many have a ratio depends on the cells' times at 32x32 (a 4-spp cell
+    # faster than PT's 1-spp rung has no PT value on a loaded machine: a CI run once judged neither).
+    assert {row["scenes"] for row in read_csv(out / "aggregate.csv")} == {"2"}
     page = (out / "index.html").read_text()
     assert "Scenes not compared" in page and "Scene blank: the reference has no contrast" in page
     record = json.loads((out / "suite.json").read_text())
