@@ -266,6 +266,31 @@ def test_every_precondition_is_checked_before_anything_renders(tmp_path, monkeyp
         assert not (tmp_path / "refused").exists()
 
 
+def test_a_grid_too_large_for_the_memory_is_refused_before_anything_renders(tmp_path, capsys, monkeypatch):
+    """guided-pilot holds arrays over every grid cell: on the path kind's default grid of a 256x256 film (4^8
+    cells per pixel, 4.3 billion cells) it once ran out of memory mid-run; now the comparison is refused, naming
+    the grid, the memory it needs and what is available. The same check passes a grid that fits."""
+    from sparselt import measurement
+    from sparselt.methods import GridMemory, MethodSetup
+    from sparselt.rendering import baseline
+
+    monkeypatch.setattr(baseline, "cached_reference", lambda *a, **k: (_ for _ in ()).throw(AssertionError("rendered")))
+    out = tmp_path / "huge"
+    code = main(["compare", "--scene", "cornell-box", "--kind", "path", "--methods", "pt,guided-pilot", "--spp",
+                 "4", "--out", str(out), "--no-progress"])
+    error = capsys.readouterr().err
+    assert code == 2 and "method 'guided-pilot' holds arrays over every cell of the grid 256x256x4x4x4x4x4x4x4x4" in error
+    assert "4,294,967,296 cells" in error and "coarser --shape" in error and not out.exists()
+    guided = get_method("guided-pilot")
+    requirement = next(entry for entry in guided.requirements() if isinstance(entry, GridMemory))
+    setup = MethodSetup(kind="path", grid_shape=(16, 16, 4, 4, 4, 4), resolution=(16, 16))  # 65,536 cells
+    monkeypatch.setattr(measurement, "available_memory", lambda: int(65536 * requirement.bytes_per_cell) + 1)
+    requirement.check(guided, setup)
+    monkeypatch.setattr(measurement, "available_memory", lambda: int(65536 * requirement.bytes_per_cell) - 1)
+    with pytest.raises(ValueError, match=r"at most 65,535 cells"):
+        requirement.check(guided, setup)
+
+
 COMPOSED = ("aaf-dof+oidn", "gradient-l2+oidn", "two-halves+oidn", "cosamp+oidn:gamma=0.5")
 
 

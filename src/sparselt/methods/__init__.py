@@ -36,6 +36,7 @@ from .base import (TIME_PHASES, WARM_UP_SEED, Budget, ComparisonContext, Method,
 from .options import MethodOptions, Option, option, resolve_options
 from .preconditions import (
     FilmResolution,
+    GridMemory,
     MethodSetup,
     MinimumSpp,
     Requirement,
@@ -58,7 +59,7 @@ from .registry import (
 from .variants import parse_method_variant, variant_file_name
 
 __all__ = ["ENTRY_POINT_GROUP", "TIME_PHASES", "WARM_UP_SEED", "Budget", "ComparisonContext", "FilmResolution",
-           "Method", "MethodOptions", "MethodResult", "MethodSetup", "MinimumSpp", "Option", "PhaseTimer",
+           "GridMemory", "Method", "MethodOptions", "MethodResult", "MethodSetup", "MinimumSpp", "Option", "PhaseTimer",
            "PluginError", "Requirement", "ResolutionMultiple", "ThinLens", "TileDividesGrid", "baseline_name",
            "get_method", "load_plugins", "method_class", "method_names", "plugin_modules", "option", "parse_method_variant",
            "register", "resolve_method_options", "resolve_options", "run_timed", "variant_file_name",

@@ -36,6 +36,7 @@ from .base import WARM_UP_SEED, Budget, Method, MethodResult
 from .cosamp_reconstruction import CosampOptions, thesis_image_from_samples
 from .options import MethodOptions, option
 from .pixel_samples import draw_pixel_samples, sample_mean_image
+from .preconditions import GridMemory
 from .registry import register
 
 MAXIMUM_RADIUS = 32
@@ -165,6 +166,7 @@ class CosampBilateral(_FilteredMethod):
     needs_resolution_multiple = True
     thesis_procedure = True
     sample_cells = True  # the CoSaMP reconstruction bins the samples into the grid
+    requires = (GridMemory(48.0),)  # the CoSaMP reconstruction's dense grid (30 bytes per cell measured)
     description = ("thesis 8.2 (eq. 8.3): the path-traced image of the CoSaMP samples, cross-bilateral filtered with "
                    "itself and the CoSaMP reconstruction (thesis procedure) as range guides")
 

@@ -79,6 +79,7 @@ from .base import WARM_UP_SEED, Budget, Method, MethodResult
 from .cosamp_reconstruction import CosampOptions, reconstruct_luminance
 from .options import MethodOptions, option
 from .pixel_samples import cell_means, draw_pixel_samples
+from .preconditions import GridMemory
 from .registry import register
 from .sft_reconstruction import SftOptions, reconstruct
 
@@ -146,10 +147,18 @@ def render_with_map(context, importance, budget, mode):
                                        budget.spp, budget.seed, mode=mode)
 
 
+#: A guided method's peak memory beyond PT's per grid cell (the importance map, its conditionals and tables, the
+#: pilot's cell means), measured with ``guided-pilot`` on cornell-box's path grid at 16x16, 32x32 and 64x64 image
+#: cells of 4^8 (49, 45, 46 bytes: a 64x64 film at that grid peaked at 12.3 GB) and on dof-sculptures' 64x64x32x32
+#: (55 bytes); with about 15% to spare. ``guided-cosamp`` measured 64 there, ``guided-bilateral`` 114.
+GUIDED_BYTES_PER_CELL = 64.0
+
+
 class _GuidedMethod(Method):
     kinds = ("dof", "indirect", "path")
     family = "guided"
     needs_resolution_multiple = True
+    requires = (GridMemory(GUIDED_BYTES_PER_CELL),)
     Options = GuidedPilotOptions
 
     def warm_up(self, context):
@@ -352,6 +361,7 @@ class GuidedPilot(_GuidedMethod):
 @register
 class GuidedCosamp(_GuidedMethod):
     name = "guided-cosamp"
+    requires = (GridMemory(80.0),)
     kinds = ("dof", "indirect", "path")
     Options = GuidedCosampOptions
     thesis_procedure = True
@@ -369,6 +379,7 @@ class GuidedCosamp(_GuidedMethod):
 @register
 class GuidedBilateral(_GuidedMethod):
     name = "guided-bilateral"
+    requires = (GridMemory(128.0),)
     kinds = ("dof", "indirect")
     Options = GuidedCosampOptions
     thesis_procedure = True
@@ -399,6 +410,10 @@ class GuidedSft(_GuidedMethod):
     name = "guided-sft"
     kinds = ("dof", "indirect", "path")
     Options = GuidedSftOptions
+    #: The map's and the SFT's arrays grow faster than the grid: on cornell-box's path grid, 16x16 image cells of 4^8
+    #: (16.8M cells) peaked at 2.1 GB beyond PT's (124 bytes per cell); 32x32 (67M cells) was killed by the system at
+    #: 24 GB after 12 minutes (over 360 bytes per cell). 400 refuses that measured failure; a bound, not a model.
+    requires = (GridMemory(400.0),)
     thesis_procedure = True
     description = ("guided by the Sparse Fourier Transform reconstruction over the map grid (thesis 6.2; "
                    "map_spp path samples per lattice point, K = N/10^4 by default), defensive mixture; "

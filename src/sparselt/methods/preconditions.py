@@ -181,5 +181,41 @@ class MinimumSpp(Requirement):
             raise ValueError(f"method {method.label!r} needs spp >= {self.spp} ({self.reason}), got spp {small[0]}")
 
 
-__all__ = ["FilmResolution", "MethodSetup", "MinimumSpp", "Requirement", "ResolutionMultiple", "SupportedKind",
+@dataclass(frozen=True, repr=True)
+class GridMemory(Requirement):
+    """The method's arrays over every cell of the signal grid fit in the memory this machine has available.
+
+    A method that holds the whole grid densely (an importance map and its
+    tables, a spectrum) needs memory in proportion to the grid's cells, not to
+    the image: at the path kind's default shape (the film's pixels, then 4
+    cells per path-vertex axis, ``4^8`` per pixel at depth 3) a 256x256 film is
+    4.3 billion cells. ``bytes_per_cell`` is the method's measured peak over
+    PT's per cell (``docs/experiments/README.md``, issue 37's eighteenth
+    session); the comparison is refused before anything renders when that
+    times the cells exceeds :func:`~sparselt.measurement.available_memory`
+    (a run beyond it was killed by the system, or swapped for minutes).
+    """
+
+    bytes_per_cell: float = 50.0
+
+    def describe(self):
+        return f"about {self.bytes_per_cell:g} bytes per grid cell (--shape) within the available memory"
+
+    def check(self, method, setup):
+        from ..measurement import available_memory
+
+        cells = math.prod(int(size) for size in setup.grid_shape)
+        needed = cells * float(self.bytes_per_cell)
+        available = available_memory()
+        if available is not None and needed > available:
+            shape = "x".join(str(int(size)) for size in setup.grid_shape)
+            largest = max(1, int(available // float(self.bytes_per_cell)))
+            raise ValueError(f"method {method.label!r} holds arrays over every cell of the grid {shape} "
+                             f"({cells:,} cells, about {self.bytes_per_cell:g} bytes each): {needed / 2**30:.1f} GiB, "
+                             f"more than the {available / 2**30:.1f} GiB this machine has available; give a coarser "
+                             f"--shape (fewer cells per non-image axis, or fewer image cells with --resolution a "
+                             f"multiple of them) of at most {largest:,} cells")
+
+
+__all__ = ["FilmResolution", "GridMemory", "MethodSetup", "MinimumSpp", "Requirement", "ResolutionMultiple", "SupportedKind",
            "ThinLens", "TileDividesGrid", "tiles_of"]

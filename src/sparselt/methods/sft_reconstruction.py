@@ -17,6 +17,7 @@ import numpy as np
 from ..recovery.path_space import sft_path_space
 from .base import Method, MethodResult
 from .options import MethodOptions, option
+from .preconditions import GridMemory
 from .registry import register
 
 DEFAULT_ALPHA = 4.0
@@ -73,6 +74,9 @@ class SparseFourierMethod(Method):
     description = ("Sparse Fourier Transform of the rendered signal on the rank-1 lattice (thesis 6.1); "
                    "--spp = path samples per lattice point, K = N/10^4 by default")
     needs_resolution_multiple = True
+    #: Peak memory beyond PT's per grid cell: 29 and 28 bytes on cornell-box's path grid (16x16 and 32x32 image cells
+    #: of 4^8), 44 on dof-sculptures' 64x64x32x32.
+    requires = (GridMemory(56.0),)
 
     def run(self, context, budget, timer):
         options = self.options
