@@ -284,6 +284,84 @@ def test_a_scene_that_cannot_be_compared_is_named_and_the_others_are_aggregated(
     assert set(record["scenes"]) == {"box", "plane"} and "no contrast" in record["not_compared"]["blank"]
 
 
+BLACK = """<scene version="3.0.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="32"/>
+    <integer name="height" value="32"/></film></sensor>
+  <shape type="sphere"><point name="center" x="0" y="0" z="3"/><bsdf type="diffuse"/></shape>
+</scene>
+"""
+
+
+def test_a_scene_refused_in_the_cluster_reference_stage_is_the_scenes_alone(tmp_path):
+    """On a Dask cluster the references render first, from the client: a scene without light (a black reference)
+    was refused there with a ValueError that ended the whole suite. It is now that scene's record, as in-process
+    (recorded: a rerun does not render it again), and the other scene is compared on the worker."""
+    from dask.distributed import LocalCluster
+
+    path = suite_file(tmp_path)
+    (tmp_path / "scenes" / "black.xml").write_text(BLACK)
+    text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
+    text = text.replace('methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]', 'methods = ["pt", "bilateral"]')
+    box = text.split("[[scene]]\nname = \"plane\"")[0]
+    path.write_text(box + '[[scene]]\nname = "black"\nscene = "scenes/black.xml"\nkind = "path"\n')
+    config = read_suite(path)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
+                      resources={"machine": 1}) as cluster:
+        result = run_suite(config, tmp_path / "out", progress=False, scheduler=cluster.scheduler_address)
+    assert set(result.not_compared) == {"black"} and "is black" in result.not_compared["black"]
+    assert result.crashed == () and {row["scene"] for row in result.rows} == {"box"}
+    assert (tmp_path / "out" / "cells" / "black.json").exists()
+
+
+def test_a_worker_killed_in_the_cluster_reference_stage_ends_that_scene_only(tmp_path):
+    """A reference pass whose worker dies each time it is tried (here killed with SIGKILL while it renders, as the
+    system kills a process out of memory; a segmentation fault in the renderer ends a worker the same way) raised
+    Dask's KilledWorker in the reference stage and ended the suite. Now that scene is listed as crashed and not
+    recorded (a rerun tries it again), and the other scene is compared on the restarted worker."""
+    import signal
+    import threading
+    import time
+
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    path = suite_file(tmp_path)
+    text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
+    text = text.replace('methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]', 'methods = ["pt", "bilateral"]')
+    head, box = text.split("[[scene]]", 1)
+    box = "[[scene]]" + box.split("[[scene]]\nname = \"plane\"")[0]
+    path.write_text(head.replace("reference_spp = 256", "reference_spp = 64")  # one pass each
+                    + '[[scene]]\nname = "large"\nscene = "cornell-box"\nkind = "path"\nresolution = [512, 512]\n\n'
+                    + box)
+    config = read_suite(path)
+    killed = []
+
+    def kill_the_first_reference_pass(client, done):
+        while not done.is_set() and not killed:
+            for address, keys in client.processing().items():
+                if any(str(key).startswith("sparselt-reference-pass") for key in keys):
+                    os.kill(client.run(os.getpid, workers=[address])[address], signal.SIGKILL)
+                    killed.append(address)
+                    return
+            time.sleep(0.02)
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
+                          resources={"machine": 1}) as cluster, Client(cluster.scheduler_address) as client:
+            done = threading.Event()
+            killer = threading.Thread(target=kill_the_first_reference_pass, args=(client, done), daemon=True)
+            killer.start()
+            try:
+                result = run_suite(config, tmp_path / "out", progress=False, scheduler=cluster.scheduler_address)
+            finally:
+                done.set()
+                killer.join()
+    assert killed
+    assert result.crashed == ("large",) and "references' passes died repeatedly" in result.not_compared["large"]
+    assert {row["scene"] for row in result.rows} == {"box"}
+    assert not (tmp_path / "out" / "cells" / "large.json").exists()
+
+
 CRASHING_PLUGIN = '''"""A plug-in that ends its process with a segmentation fault on the kind named by SPARSELT_TEST_CRASH_KIND."""
 import faulthandler
 import os

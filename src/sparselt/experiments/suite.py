@@ -181,12 +181,23 @@ class SuiteExperiment(Experiment):
                 raise RuntimeError(f"no worker of the Dask cluster at {self.scheduler!r} holds the resource "
                                    f"{MACHINE_RESOURCE!r}: start one worker per machine with 'dask worker "
                                    f"{self.scheduler} --resources {MACHINE_RESOURCE}=1 --nthreads N' (N its cores)")
-            for name in missing:  # every worker renders the references' passes (same bytes as in-process)
+            for name in list(missing):  # every worker renders the references' passes (same bytes as in-process)
                 comparison = self.comparisons[name]
                 say(f"suite: reference of {name} on the cluster")
-                loaded = self.setups[name].load(comparison.output_resolution).scene
-                ComparisonReference(comparison, self.setups[name], cache_directory=folder.path_of(REFERENCES),
-                                    scheduler=self.scheduler).start(loaded, progress)
+                try:
+                    loaded = self.setups[name].load(comparison.output_resolution).scene
+                    ComparisonReference(comparison, self.setups[name], cache_directory=folder.path_of(REFERENCES),
+                                        scheduler=self.scheduler).start(loaded, progress)
+                except ValueError as error:  # e.g. a black reference: the scene's, as in its comparison
+                    records[name] = _not_compared(name, error)
+                    folder.record_cell(name, records[name])
+                except KilledWorker as crash:  # a pass's worker died every time it was tried: the rest go on
+                    records[name] = _crashed(name, crash, stage="the references' passes")
+                    folder.attempted += 1  # not recorded: a rerun tries again, from the passes that landed
+                else:
+                    continue
+                missing.remove(name)
+                say(f"suite: scene {name} cannot be compared: {records[name][NOT_COMPARED]}")
             futures = {}
             for name in missing:
                 future = client.submit(scene_task, self.comparisons[name], folder.path_of(f"{SCENES}/{name}"),
@@ -238,16 +249,17 @@ NOT_COMPARED = "not_compared"
 CRASHED = "crashed"
 
 
-def _crashed(name, crash):
+def _crashed(name, crash, stage="its comparison"):
     """The record of scene ``name`` whose comparison's process died (``crash``: a
-    :class:`~sparselt.experiments.isolation.ChildCrashed`, or Dask's ``KilledWorker`` for a worker that died)."""
+    :class:`~sparselt.experiments.isolation.ChildCrashed`, or Dask's ``KilledWorker`` for a worker that died
+    running ``stage``)."""
     if isinstance(crash, ChildCrashed):
         how = describe_exit(crash.returncode)
         cause = exit_cause(crash.returncode)
         text = f"its comparison's process ended with {how}" + (f": {cause}" if cause else " and no result")
     else:
         how = "worker died"
-        text = f"the Dask worker running its comparison died repeatedly ({crash})"
+        text = f"the Dask worker running {stage} died repeatedly ({crash})"
     return {"scene": name, NOT_COMPARED: f"{text}; not recorded: a rerun of the same command tries this scene "
             "again, resuming its comparison from what it finished", CRASHED: how}
 
