@@ -287,7 +287,10 @@ def test_a_grid_too_large_for_the_memory_is_refused_before_anything_renders(tmp_
     monkeypatch.setattr(measurement, "available_memory", lambda: int(65536 * requirement.bytes_per_cell) + 1)
     requirement.check(guided, setup)
     monkeypatch.setattr(measurement, "available_memory", lambda: int(65536 * requirement.bytes_per_cell) - 1)
-    with pytest.raises(ValueError, match=r"at most 65,535 cells"):
+    with pytest.raises(ValueError, match=r"at most 65,535 cells, e\.g\. --shape 16,16,3,3,3,3$"):
+        requirement.check(guided, setup)
+    monkeypatch.setattr(measurement, "available_memory", lambda: int(255 * requirement.bytes_per_cell))
+    with pytest.raises(ValueError, match=r"at most 255 cells$"):  # not even one cell per lens axis fits
         requirement.check(guided, setup)
 
 

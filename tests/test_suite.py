@@ -357,7 +357,7 @@ def test_a_worker_killed_in_the_cluster_reference_stage_ends_that_scene_only(tmp
                 done.set()
                 killer.join()
     assert killed
-    assert result.crashed == ("large",) and "references' passes died repeatedly" in result.not_compared["large"]
+    assert result.crashed == ("large",) and "running a reference pass died every time" in result.not_compared["large"]
     assert {row["scene"] for row in result.rows} == {"box"}
     assert not (tmp_path / "out" / "cells" / "large.json").exists()
 

@@ -17,6 +17,26 @@ from urllib.parse import urlparse
 
 from .checks import check_integer
 
+class WorkerDied(RuntimeError):
+    """A task's worker died every time the task was tried (Dask's ``KilledWorker``: a segmentation fault in the
+    renderer, or the system killing the worker for its memory). What had landed is kept; the message says so."""
+
+
+@contextlib.contextmanager
+def worker_deaths_reported(what):
+    """Turn Dask's ``KilledWorker`` raised inside the block into :class:`WorkerDied`, naming ``what`` was running
+    (e.g. "a reference pass") and that a rerun resumes from what landed: a clear error (exit 2) at the command line
+    instead of Dask's traceback."""
+    from distributed import KilledWorker
+
+    try:
+        yield
+    except KilledWorker as error:
+        raise WorkerDied(f"the Dask worker running {what} died every time it was tried (a crash in native code, or "
+                         f"killed for its memory: see the worker's log); what finished is kept, and a rerun of the "
+                         f"same command resumes from it ({error})") from error
+
+
 #: Environment variable that fixes Dr.Jit's threads per task on the workers (overrides the per-host share).
 WORKER_THREADS_VARIABLE = "SPARSELT_WORKER_THREADS"
 

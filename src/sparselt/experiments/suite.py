@@ -45,6 +45,7 @@ import socket
 import sys
 import time
 
+from ..distributed import WorkerDied
 from ..provenance import environment_record
 from .compare import compare
 from .isolation import ChildCrashed, describe_exit, exit_cause, load_importable_plugins, run_in_child
@@ -191,8 +192,8 @@ class SuiteExperiment(Experiment):
                 except ValueError as error:  # e.g. a black reference: the scene's, as in its comparison
                     records[name] = _not_compared(name, error)
                     folder.record_cell(name, records[name])
-                except KilledWorker as crash:  # a pass's worker died every time it was tried: the rest go on
-                    records[name] = _crashed(name, crash, stage="the references' passes")
+                except WorkerDied as crash:  # a pass's worker died every time it was tried: the rest go on
+                    records[name] = _crashed(name, crash)
                     folder.attempted += 1  # not recorded: a rerun tries again, from the passes that landed
                 else:
                     continue
@@ -249,17 +250,20 @@ NOT_COMPARED = "not_compared"
 CRASHED = "crashed"
 
 
-def _crashed(name, crash, stage="its comparison"):
+def _crashed(name, crash):
     """The record of scene ``name`` whose comparison's process died (``crash``: a
-    :class:`~sparselt.experiments.isolation.ChildCrashed`, or Dask's ``KilledWorker`` for a worker that died
-    running ``stage``)."""
+    :class:`~sparselt.experiments.isolation.ChildCrashed`, Dask's ``KilledWorker`` for a worker that died running
+    its comparison, or :class:`~sparselt.distributed.WorkerDied` for one that died rendering its reference)."""
     if isinstance(crash, ChildCrashed):
         how = describe_exit(crash.returncode)
         cause = exit_cause(crash.returncode)
         text = f"its comparison's process ended with {how}" + (f": {cause}" if cause else " and no result")
+    elif isinstance(crash, WorkerDied):
+        how = "worker died"
+        text = f"rendering its reference: {crash}"
     else:
         how = "worker died"
-        text = f"the Dask worker running {stage} died repeatedly ({crash})"
+        text = f"the Dask worker running its comparison died repeatedly ({crash})"
     return {"scene": name, NOT_COMPARED: f"{text}; not recorded: a rerun of the same command tries this scene "
             "again, resuming its comparison from what it finished", CRASHED: how}
 

@@ -410,9 +410,10 @@ class GuidedSft(_GuidedMethod):
     name = "guided-sft"
     kinds = ("dof", "indirect", "path")
     Options = GuidedSftOptions
-    #: The map's and the SFT's arrays grow faster than the grid: on cornell-box's path grid, 16x16 image cells of 4^8
-    #: (16.8M cells) peaked at 2.1 GB beyond PT's (124 bytes per cell); 32x32 (67M cells) was killed by the system at
-    #: 24 GB after 12 minutes (over 360 bytes per cell). 400 refuses that measured failure; a bound, not a model.
+    #: The map's and the SFT's arrays grow faster than the grid: on cornell-box's path grid, 16x16 image cells of
+    #: 4^8 (16.8M cells) peaked at 2.1 GB beyond PT's (about 120 bytes per cell); 32x32 (67M cells) was killed by
+    #: the system at 24 GB after 12 minutes (over 360 bytes per cell). 400 refuses that measured failure; a bound,
+    #: not a model.
     requires = (GridMemory(400.0),)
     thesis_procedure = True
     description = ("guided by the Sparse Fourier Transform reconstruction over the map grid (thesis 6.2; "

@@ -210,11 +210,24 @@ class GridMemory(Requirement):
         if available is not None and needed > available:
             shape = "x".join(str(int(size)) for size in setup.grid_shape)
             largest = max(1, int(available // float(self.bytes_per_cell)))
+            suggestion = coarser_shape(setup.grid_shape, largest)
+            hint = f", e.g. --shape {','.join(str(size) for size in suggestion)}" if suggestion else ""
             raise ValueError(f"method {method.label!r} holds arrays over every cell of the grid {shape} "
                              f"({cells:,} cells, about {self.bytes_per_cell:g} bytes each): {needed / 2**30:.1f} GiB, "
                              f"more than the {available / 2**30:.1f} GiB this machine has available; give a coarser "
                              f"--shape (fewer cells per non-image axis, or fewer image cells with --resolution a "
-                             f"multiple of them) of at most {largest:,} cells")
+                             f"multiple of them) of at most {largest:,} cells{hint}")
+
+
+def coarser_shape(grid_shape, largest):
+    """The grid with its image axes kept and every other axis at the largest common count (at most its own) whose
+    cells are at most ``largest``; None where even one cell per other axis is too many."""
+    image, rest = [int(size) for size in grid_shape[:2]], [int(size) for size in grid_shape[2:]]
+    for count in range(max(rest, default=1), 0, -1):
+        shape = image + [min(size, count) for size in rest]
+        if math.prod(shape) <= largest:
+            return tuple(shape)
+    return None
 
 
 __all__ = ["FilmResolution", "GridMemory", "MethodSetup", "MinimumSpp", "Requirement", "ResolutionMultiple", "SupportedKind",

@@ -566,9 +566,13 @@ def _run_on_dask(client, job, pending, land):
     # The renderer stays out of the task graph: the in-process scene is not sent, only the job.
     futures = [client.submit(sample_chunk, dataclasses.replace(job, index=index), pure=False,
                              key=f"sparselt-chunk-{index}-{os.getpid()}-{time.monotonic_ns()}") for index in pending]
+    from ..distributed import worker_deaths_reported
+
     try:
         for future in as_completed(futures):
-            land(future.result())
+            with worker_deaths_reported("a chunk of samples"):
+                result = future.result()
+            land(result)
     except BaseException:
         client.cancel(futures)
         raise

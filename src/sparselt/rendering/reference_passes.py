@@ -220,11 +220,15 @@ def render_passes(indices, *, scene, make_job, land, should_stop, client=None):
         running.append(future)
         return future
 
+    from ..distributed import worker_deaths_reported
+
     queue = as_completed([submit() for _ in range(min(len(waiting), 2 * max(threads, 1)))])
     try:
         for future in queue:
             running.remove(future)
-            land(*future.result())
+            with worker_deaths_reported("a reference pass"):
+                result = future.result()
+            land(*result)
             if waiting and not should_stop():
                 queue.add(submit())
             elif should_stop() and running:
