@@ -292,32 +292,14 @@ BLACK = """<scene version="3.0.0">
 """
 
 
-def test_a_scene_refused_in_the_cluster_reference_stage_is_the_scenes_alone(tmp_path):
-    """On a Dask cluster the references render first, from the client: a scene without light (a black reference)
-    was refused there with a ValueError that ended the whole suite. It is now that scene's record, as in-process
-    (recorded: a rerun does not render it again), and the other scene is compared on the worker."""
-    from dask.distributed import LocalCluster
-
-    path = suite_file(tmp_path)
-    (tmp_path / "scenes" / "black.xml").write_text(BLACK)
-    text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
-    text = text.replace('methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]', 'methods = ["pt", "bilateral"]')
-    box = text.split("[[scene]]\nname = \"plane\"")[0]
-    path.write_text(box + '[[scene]]\nname = "black"\nscene = "scenes/black.xml"\nkind = "path"\n')
-    config = read_suite(path)
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
-                      resources={"machine": 1}) as cluster:
-        result = run_suite(config, tmp_path / "out", progress=False, scheduler=cluster.scheduler_address)
-    assert set(result.not_compared) == {"black"} and "is black" in result.not_compared["black"]
-    assert result.crashed == () and {row["scene"] for row in result.rows} == {"box"}
-    assert (tmp_path / "out" / "cells" / "black.json").exists()
-
-
-def test_a_worker_killed_in_the_cluster_reference_stage_ends_that_scene_only(tmp_path):
-    """A reference pass whose worker dies each time it is tried (here killed with SIGKILL while it renders, as the
-    system kills a process out of memory; a segmentation fault in the renderer ends a worker the same way) raised
-    Dask's KilledWorker in the reference stage and ended the suite. Now that scene is listed as crashed and not
-    recorded (a rerun tries it again), and the other scene is compared on the restarted worker."""
+def test_the_cluster_reference_stage_ends_only_the_scene_it_fails(tmp_path):
+    """On a Dask cluster the references render first, from the client, and two failures there ended the whole
+    suite: a reference pass whose worker dies each time it is tried (Dask's KilledWorker; here the worker is killed
+    with SIGKILL while it renders, as the system kills a process out of memory, and a segmentation fault in the
+    renderer ends a worker the same way), and a scene refused while its reference renders (a scene without light:
+    a black reference, a ValueError). Now the first scene is listed as crashed and not recorded (a rerun tries it
+    again), the second is recorded as not compared (as in-process), and the third is compared on the restarted
+    worker."""
     import signal
     import threading
     import time
@@ -326,13 +308,14 @@ def test_a_worker_killed_in_the_cluster_reference_stage_ends_that_scene_only(tmp
     from dask.distributed import Client, LocalCluster
 
     path = suite_file(tmp_path)
+    (tmp_path / "scenes" / "black.xml").write_text(BLACK)
     text = path.read_text().replace("seeds = [1, 2, 3]", "seeds = [1, 2]").replace("spp = [4, 16]", "spp = [4]")
     text = text.replace('methods = ["pt", "oidn", "bilateral:sigma_spatial=1.5"]', 'methods = ["pt", "bilateral"]')
     head, box = text.split("[[scene]]", 1)
     box = "[[scene]]" + box.split("[[scene]]\nname = \"plane\"")[0]
     path.write_text(head.replace("reference_spp = 256", "reference_spp = 64")  # one pass each
                     + '[[scene]]\nname = "large"\nscene = "cornell-box"\nkind = "path"\nresolution = [512, 512]\n\n'
-                    + box)
+                    + '[[scene]]\nname = "black"\nscene = "scenes/black.xml"\nkind = "path"\n\n' + box)
     config = read_suite(path)
     killed = []
 
@@ -358,8 +341,10 @@ def test_a_worker_killed_in_the_cluster_reference_stage_ends_that_scene_only(tmp
                 killer.join()
     assert killed
     assert result.crashed == ("large",) and "running a reference pass died every time" in result.not_compared["large"]
+    assert set(result.not_compared) == {"large", "black"} and "is black" in result.not_compared["black"]
     assert {row["scene"] for row in result.rows} == {"box"}
     assert not (tmp_path / "out" / "cells" / "large.json").exists()
+    assert (tmp_path / "out" / "cells" / "black.json").exists()
 
 
 CRASHING_PLUGIN = '''"""A plug-in that ends its process with a segmentation fault on the kind named by SPARSELT_TEST_CRASH_KIND."""
