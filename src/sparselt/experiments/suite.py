@@ -45,7 +45,7 @@ import socket
 import sys
 import time
 
-from ..distributed import WorkerDied
+from ..distributed import WorkerDied, worker_deaths_reported
 from ..provenance import environment_record
 from .compare import compare
 from .isolation import ChildCrashed, describe_exit, exit_cause, load_importable_plugins, run_in_child
@@ -164,8 +164,6 @@ class SuiteExperiment(Experiment):
     def _run_on_cluster(self, folder, progress):
         """References across the cluster, then each scene's comparison on one whole machine."""
         from dask.distributed import as_completed
-        from distributed import KilledWorker
-
         from ..distributed import dask_client
         from ..methods import plugin_modules
         from .comparison_reference import ComparisonReference
@@ -208,10 +206,11 @@ class SuiteExperiment(Experiment):
             for future in as_completed(list(futures)):
                 name = futures[future]
                 try:
-                    record = dict(future.result(), scene=name)
+                    with worker_deaths_reported("its comparison"):
+                        record = dict(future.result(), scene=name)
                 except ValueError as error:
                     record = _not_compared(name, error)
-                except (ChildCrashed, KilledWorker) as crash:
+                except (ChildCrashed, WorkerDied) as crash:
                     record = _crashed(name, crash)
                 if CRASHED in record:
                     records[name] = record  # not recorded: a rerun tries again
@@ -252,18 +251,15 @@ CRASHED = "crashed"
 
 def _crashed(name, crash):
     """The record of scene ``name`` whose comparison's process died (``crash``: a
-    :class:`~sparselt.experiments.isolation.ChildCrashed`, Dask's ``KilledWorker`` for a worker that died running
-    its comparison, or :class:`~sparselt.distributed.WorkerDied` for one that died rendering its reference)."""
+    :class:`~sparselt.experiments.isolation.ChildCrashed`, or a :class:`~sparselt.distributed.WorkerDied` for a
+    Dask worker that died every time it ran the scene's comparison or a pass of its reference)."""
     if isinstance(crash, ChildCrashed):
         how = describe_exit(crash.returncode)
         cause = exit_cause(crash.returncode)
         text = f"its comparison's process ended with {how}" + (f": {cause}" if cause else " and no result")
-    elif isinstance(crash, WorkerDied):
-        how = "worker died"
-        text = f"rendering its reference: {crash}"
     else:
         how = "worker died"
-        text = f"the Dask worker running its comparison died repeatedly ({crash})"
+        text = str(crash)
     return {"scene": name, NOT_COMPARED: f"{text}; not recorded: a rerun of the same command tries this scene "
             "again, resuming its comparison from what it finished", CRASHED: how}
 

@@ -74,6 +74,10 @@ from .preconditions import GridMemory, MinimumSpp
 from .registry import register
 
 DEFAULT_GAMMA = 0.25
+#: The CoSaMP methods' peak memory beyond PT's per grid cell (their dense grid arrays, :class:`GridMemory`): 37 and
+#: 36 bytes measured for ``cosamp`` and ``cosamp-thesis`` on dof-sculptures' 64x64x32x32, 30 for
+#: ``cosamp-bilateral``; with about 30% to spare.
+COSAMP_BYTES_PER_CELL = 48.0
 SPARSITY_RATE = 1 / 200  # thesis 8.1.1: "an expected sparsity rate of 1/200"
 # Rendered measurements are noisy: the residual cannot fall below the noise. Stop at the first
 # iteration that improves it by less than 1% (measured on dof-sculptures 250x250x16x16 at 40 spp:
@@ -184,9 +188,7 @@ class _CosampMethod(Method):
     family = "cosamp"
     needs_resolution_multiple = True
     Options = CosampOptions
-    #: The reconstruction's dense grid arrays: 37 and 36 bytes per cell beyond PT's peak for ``cosamp`` and
-    #: ``cosamp-thesis`` on dof-sculptures' 64x64x32x32 (``cosamp-bilateral`` 30).
-    requires = (GridMemory(48.0),)
+    requires = (GridMemory(COSAMP_BYTES_PER_CELL),)
 
     def warm_up(self, context):
         # The renderer's kernels and the numba loops around CoSaMP's FFTs compile here, not in a timed run.
@@ -377,7 +379,7 @@ class Cosamp(_CosampMethod):
 
     name = "cosamp"
     description = "CoSaMP 4-D reconstruction (thesis 8.1) as a cross-fitted control variate of the pixel's samples (unbiased)"
-    requires = (MinimumSpp(2), GridMemory(48.0))
+    requires = (MinimumSpp(2),) + _CosampMethod.requires
 
     def image(self, samples, grid_shape, timer):
         options = self.options

@@ -33,7 +33,7 @@ import numpy as np
 from ..cell_statistics import variance_from_sums
 from ..filters import bilateral, cross_bilateral, gaussian, oidn_denoise
 from .base import WARM_UP_SEED, Budget, Method, MethodResult
-from .cosamp_reconstruction import CosampOptions, thesis_image_from_samples
+from .cosamp_reconstruction import COSAMP_BYTES_PER_CELL, CosampOptions, thesis_image_from_samples
 from .options import MethodOptions, option
 from .pixel_samples import draw_pixel_samples, sample_mean_image
 from .preconditions import GridMemory
@@ -166,7 +166,7 @@ class CosampBilateral(_FilteredMethod):
     needs_resolution_multiple = True
     thesis_procedure = True
     sample_cells = True  # the CoSaMP reconstruction bins the samples into the grid
-    requires = (GridMemory(48.0),)  # the CoSaMP reconstruction's dense grid (30 bytes per cell measured)
+    requires = (GridMemory(COSAMP_BYTES_PER_CELL),)  # the CoSaMP reconstruction's dense grid
     description = ("thesis 8.2 (eq. 8.3): the path-traced image of the CoSaMP samples, cross-bilateral filtered with "
                    "itself and the CoSaMP reconstruction (thesis procedure) as range guides")
 

@@ -196,7 +196,7 @@ class GridMemory(Requirement):
     (a run beyond it was killed by the system, or swapped for minutes).
     """
 
-    bytes_per_cell: float = 50.0
+    bytes_per_cell: float
 
     def describe(self):
         return f"about {self.bytes_per_cell:g} bytes per grid cell (--shape) within the available memory"
@@ -207,7 +207,7 @@ class GridMemory(Requirement):
         cells = math.prod(int(size) for size in setup.grid_shape)
         needed = cells * float(self.bytes_per_cell)
         available = available_memory()
-        if available is not None and needed > available:
+        if needed > available:
             shape = "x".join(str(int(size)) for size in setup.grid_shape)
             largest = max(1, int(available // float(self.bytes_per_cell)))
             suggestion = coarser_shape(setup.grid_shape, largest)

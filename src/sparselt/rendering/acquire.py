@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import check_integer
+from ..distributed import worker_deaths_reported
 from ..measurement import available_memory, progress_bar
 from ..provenance import environment_record, format_bytes
 from ..signal import Signal, load_signal
@@ -566,8 +567,6 @@ def _run_on_dask(client, job, pending, land):
     # The renderer stays out of the task graph: the in-process scene is not sent, only the job.
     futures = [client.submit(sample_chunk, dataclasses.replace(job, index=index), pure=False,
                              key=f"sparselt-chunk-{index}-{os.getpid()}-{time.monotonic_ns()}") for index in pending]
-    from ..distributed import worker_deaths_reported
-
     try:
         for future in as_completed(futures):
             with worker_deaths_reported("a chunk of samples"):

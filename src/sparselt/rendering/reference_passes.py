@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..digest import bytes_digest
+from ..distributed import worker_deaths_reported
 from ..provenance import atomic_write_bytes, read_json, write_json
 
 #: The folder of a reference's cache entry that holds its passes.
@@ -219,8 +220,6 @@ def render_passes(indices, *, scene, make_job, land, should_stop, client=None):
                                key=f"sparselt-reference-pass-{index}-{os.getpid()}-{time.monotonic_ns()}")
         running.append(future)
         return future
-
-    from ..distributed import worker_deaths_reported
 
     queue = as_completed([submit() for _ in range(min(len(waiting), 2 * max(threads, 1)))])
     try:
