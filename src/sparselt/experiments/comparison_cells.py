@@ -11,7 +11,6 @@ PT's rungs, tested on its own.
 
 from __future__ import annotations
 
-import gc
 import math
 import sys
 import time
@@ -19,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..methods import TIME_PHASES, WARM_UP_SEED, Budget, run_timed, warm_up
+from ..methods import TIME_PHASES, WARM_UP_SEED, Budget, collect_recent_garbage, run_timed, warm_up
 from ..methods.contract import check_result
 from ..methods.variants import variant_file_name
 from .equal_time import NOISY_TIMING_RATIO
@@ -265,7 +264,7 @@ class CellRunner:
         if (row, spp) not in self.warmed_budgets:
             self._warm_budget(method, spp)
         budget = Budget(spp=spp, seed=seed)
-        gc.collect()  # garbage freed before the clock starts (see warm_up)
+        collect_recent_garbage()  # before the clock starts
         run_start = time.perf_counter()
         result = run_timed(method, context, budget)
         wall = time.perf_counter() - run_start
@@ -319,7 +318,7 @@ class CellRunner:
         memory. Its seconds are added to the row's ``warm_up_seconds``.
         """
         row = method.label
-        gc.collect()
+        collect_recent_garbage()  # before the clock starts
         warm_start = time.perf_counter()
         run_timed(method, self.context, Budget(spp=spp, seed=WARM_UP_SEED))
         elapsed = time.perf_counter() - warm_start

@@ -31,8 +31,8 @@ for declared options, :mod:`sparselt.methods.preconditions` for requirements,
 for the checks every method passes.
 """
 
-from .base import (TIME_PHASES, WARM_UP_SEED, Budget, ComparisonContext, Method, MethodResult, PhaseTimer, run_timed,
-                   warm_up)
+from .base import (TIME_PHASES, WARM_UP_SEED, Budget, ComparisonContext, Method, MethodResult, PhaseTimer,
+                   collect_recent_garbage, run_timed, warm_up)
 from .options import MethodOptions, Option, option, resolve_options
 from .preconditions import (
     FilmResolution,
@@ -61,6 +61,6 @@ from .variants import parse_method_variant, variant_file_name
 __all__ = ["ENTRY_POINT_GROUP", "TIME_PHASES", "WARM_UP_SEED", "Budget", "ComparisonContext", "FilmResolution",
            "GridMemory", "Method", "MethodOptions", "MethodResult", "MethodSetup", "MinimumSpp", "Option", "PhaseTimer",
            "PluginError", "Requirement", "ResolutionMultiple", "ThinLens", "TileDividesGrid", "baseline_name",
-           "get_method", "load_plugins", "method_class", "method_names", "plugin_modules", "option", "parse_method_variant",
-           "register", "resolve_method_options", "resolve_options", "run_timed", "variant_file_name",
-           "warm_up"]
+           "collect_recent_garbage", "get_method", "load_plugins", "method_class", "method_names", "plugin_modules",
+           "option", "parse_method_variant", "register", "resolve_method_options", "resolve_options", "run_timed",
+           "variant_file_name", "warm_up"]

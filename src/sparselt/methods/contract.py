@@ -27,7 +27,6 @@ scikit-learn's ``utils.estimator_checks`` (one suite over every estimator).
 
 from __future__ import annotations
 
-import gc
 import json
 import math
 import time
@@ -35,7 +34,7 @@ import time
 import numpy as np
 
 from ..rendering.mitsuba.launch import count_samples
-from .base import TIME_PHASES, MethodResult, run_timed, warm_up
+from .base import TIME_PHASES, MethodResult, collect_recent_garbage, run_timed, warm_up
 from .options import resolve_options
 from .preconditions import MethodSetup, SupportedKind
 
@@ -141,7 +140,7 @@ def check_method(method, context, budget):
     runs = []
     for _ in range(2):
         with count_samples() as counted:
-            gc.collect()  # garbage freed before the clock starts (see warm_up)
+            collect_recent_garbage()  # before the clock starts
             start = time.perf_counter()
             result = run_timed(method, context, budget)
             wall = time.perf_counter() - start
