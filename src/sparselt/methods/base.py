@@ -269,10 +269,10 @@ def collect_recent_garbage():
     tiny`` spent 22 of its 42 s in 162 full collections), about a run's own
     time at small budgets. The full collection :func:`warm_up` makes once
     per method frees a scene dropped before it (the case that changes
-    kernels). Checked on comparisons of 14 methods over three kinds and
-    ``reproduce``'s chapter 8: a full collection right after the young one
-    found only numba's compiler garbage (llvmlite's IR, after a kernel
-    compiled), never an array.
+    kernels). Checked on two comparisons (9 methods, the path and indirect
+    kinds) and ``reproduce``'s chapter 8: a full collection right after the
+    young one found only numba's compiler garbage (llvmlite's IR, after a
+    kernel compiled), never an array.
     """
     gc.collect(1)
 
