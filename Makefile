@@ -11,7 +11,7 @@ $(STAMP): pyproject.toml scripts/bootstrap.sh
 	touch $(STAMP)
 
 # Two pytest workers, one test file each at a time (pytest-xdist): most tests wait on a browser, a Dask cluster,
-# a subprocess or a compiler, so two workers on two cores take about 10 minutes instead of 17. No test's assertion
+# a subprocess or a compiler, so two workers on two cores take about 10 minutes instead of 14.5. No test's assertion
 # depends on measured times (a compare page's verdicts are checked against every wording the protocol may give).
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
