@@ -251,8 +251,9 @@ def warm_up(method, context):
     process, compiled two kernels inside its first timed run because the
     first scene was collected between the warm-up and the run. Collecting
     first makes the warm-up's kernels the ones the runs use; the harness
-    collects again before each run's clock starts, and :func:`run_timed` keeps
-    the collector off inside the run.
+    collects the young generations before each run's clock starts
+    (:func:`collect_recent_garbage`), and :func:`run_timed` keeps the
+    collector off inside the run.
     """
     gc.collect()
     method.warm_up(context)
