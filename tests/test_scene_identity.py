@@ -235,6 +235,23 @@ def test_irradiancemeter_is_named_by_its_sensor_type(tmp_path):
     assert "'perspective' or 'thinlens'" in str(error.value) and "llvm" not in str(error.value)
 
 
+def test_a_sensor_it_cannot_sample_is_named_before_its_film_size(tmp_path, capsys):
+    """The sensor's type is read from the XML before anything loads: a radiance meter's 1x1 film was refused as too
+    small for SSIM first, and its sensor only once that was fixed. A ``$name`` type resolves (its default, or -D);
+    with a supported type the film's size is what is refused."""
+    xml = write(tmp_path / "scene.xml", '<scene version="3.0.0">\n  <default name="camera" value="radiancemeter"/>\n'
+                '  <sensor type="$camera">\n    <film type="hdrfilm"><integer name="width" value="1"/>'
+                '<integer name="height" value="1"/></film>\n  </sensor>\n' + SPHERE + "</scene>\n")
+    command = ["compare", "--scene", xml, "--kind", "path", "--methods", "pt", "--spp", "4", "--no-progress"]
+    assert main(command + ["--out", str(tmp_path / "meter")]) == 2
+    message = capsys.readouterr().err
+    assert "sensor is of type 'radiancemeter'" in message and "SSIM" not in message
+    assert not (tmp_path / "meter").exists()
+    assert main(command + ["-D", "camera=perspective", "--out", str(tmp_path / "perspective")]) == 2
+    message = capsys.readouterr().err
+    assert "too small for SSIM" in message and "sensor is of type" not in message
+
+
 # -- case 16: an aperture without a focus distance focuses where the central ray hits ---------------------------
 
 

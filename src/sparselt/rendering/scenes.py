@@ -142,6 +142,7 @@ class SceneSpec:
     hide_emitters: bool = False
     parameters: tuple = ()
     integrator_max_depth: int | None = None
+    sensor_type: str | None = None
 
     def with_parameters(self, parameters):
         """Return a copy with values for the XML file's ``$name`` parameters (later values win).
@@ -184,7 +185,8 @@ class SceneSpec:
         spec = replace(self, parameters=tuple(sorted(values.items())))
         settings = read_xml_settings(self.filename, spec.parameters)
         return replace(spec, default_resolution=settings["resolution"] or self.default_resolution,
-                       hide_emitters=settings["hide_emitters"], integrator_max_depth=settings["max_depth"])
+                       hide_emitters=settings["hide_emitters"], integrator_max_depth=settings["max_depth"],
+                       sensor_type=settings["sensor_type"])
 
     def with_lens(self, aperture_radius=None, focus_distance=None):
         """Record a thin-lens override; applied to the camera once it is known."""
@@ -340,14 +342,27 @@ def scene_names():
     return sorted(SCENES)
 
 
-def read_xml_settings(path, parameters=()):
-    """What sparselt takes from a Mitsuba XML file besides the scene: film size, ``hide_emitters``, and the
-    integrator's ``max_depth`` (only to note a difference from the kind's depth).
+#: The Mitsuba sensor types whose image plane and lens sparselt samples.
+SUPPORTED_SENSOR_TYPES = ("perspective", "thinlens")
 
-    Returns ``{'resolution': (width, height) or None, 'hide_emitters': bool, 'max_depth': int or None}``,
-    resolving ``$name`` references to ``parameters`` (``(name, value)``
-    pairs) or else the file's ``<default>`` values. Plain XML parsing: the
-    renderer is not needed.
+
+def unsupported_sensor_message(sensor_type):
+    """Why a scene whose sensor is of ``sensor_type`` (not in :data:`SUPPORTED_SENSOR_TYPES`) is refused."""
+    return (f"the scene's sensor is of type {sensor_type!r}, not a perspective or thin-lens camera; sparselt "
+            "samples the image plane and lens of those only: change the XML's <sensor type=...> to "
+            "'perspective' or 'thinlens'")
+
+
+def read_xml_settings(path, parameters=()):
+    """What sparselt takes from a Mitsuba XML file besides the scene: film size, ``hide_emitters``, the
+    integrator's ``max_depth`` (only to note a difference from the kind's depth) and the sensor's type.
+
+    Returns ``{'resolution': (width, height) or None, 'hide_emitters': bool, 'max_depth': int or None,
+    'sensor_type': str or None}``, resolving ``$name`` references to
+    ``parameters`` (``(name, value)`` pairs) or else the file's
+    ``<default>`` values. ``sensor_type`` is the first ``<sensor>``'s, None
+    where the file has none or includes other files (an included sensor may
+    come first). Plain XML parsing: the renderer is not needed.
     """
     import xml.etree.ElementTree as ElementTree
 
@@ -358,11 +373,16 @@ def read_xml_settings(path, parameters=()):
     defaults = {node.get("name"): node.get("value") for node in root.iter("default")}
     defaults.update(dict(parameters))
 
-    def value(node):
-        text = node.get("value", "")
+    def resolved(text):
         return defaults.get(text[1:], text) if text.startswith("$") else text
 
-    settings = {"resolution": None, "hide_emitters": False, "max_depth": None}
+    def value(node):
+        return resolved(node.get("value", ""))
+
+    settings = {"resolution": None, "hide_emitters": False, "max_depth": None, "sensor_type": None}
+    sensor = next(root.iter("sensor"), None)
+    if sensor is not None and next(root.iter("include"), None) is None:
+        settings["sensor_type"] = resolved(sensor.get("type", ""))
     for film in root.iter("film"):
         sizes = {node.get("name"): value(node) for node in film.findall("integer")}
         try:
@@ -418,7 +438,8 @@ def get_scene(name_or_path):
         settings = read_xml_settings(path)
         return SceneSpec(name=os.path.basename(path), description=f"Mitsuba scene file {path}", filename=path,
                          default_resolution=settings["resolution"] or (256, 256),
-                         hide_emitters=settings["hide_emitters"], integrator_max_depth=settings["max_depth"])
+                         hide_emitters=settings["hide_emitters"], integrator_max_depth=settings["max_depth"],
+                         sensor_type=settings["sensor_type"])
     raise ValueError(
         f"unknown scene {name_or_path!r}; built-in scenes are: {', '.join(sorted(SCENES))}; "
         "or give the path of a Mitsuba 3 XML scene file"

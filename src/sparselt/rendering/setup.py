@@ -22,7 +22,7 @@ from ..checks import check_integer
 from ..digest import digest
 from .layout import KINDS, check_indexable_grid, default_shape, path_layout
 from .mitsuba.runtime import DEFAULT_VARIANT, SUPPORTED_VARIANTS  # plain constants: imports no Mitsuba
-from .scenes import SceneSpec, get_scene, note_once
+from .scenes import SUPPORTED_SENSOR_TYPES, SceneSpec, get_scene, note_once, unsupported_sensor_message
 
 #: Longest path (Mitsuba's convention) when none is given: one indirect bounce, as the thesis.
 DEFAULT_MAX_DEPTH = 3
@@ -80,13 +80,19 @@ class SceneSetup:
         Raises
         ------
         ValueError
-            An unknown scene name, a missing file, a bad parameter, a focus
-            distance without a lens.
+            An unknown scene name, a missing file, a bad parameter, a
+            scene file whose first sensor sparselt cannot sample (its XML
+            type), a focus distance without a lens.
         """
         if self.scene_spec is not None and not isinstance(self.scene_spec, SceneSpec):
             raise TypeError(f"scene_spec must be a SceneSpec, got {type(self.scene_spec).__name__}")
         spec = self.scene_spec if self.scene_spec is not None else get_scene(self.scene)
-        return spec.with_parameters(self.parameters).with_lens(self.aperture, self.focus_distance)
+        spec = spec.with_parameters(self.parameters)
+        if spec.sensor_type is not None and spec.sensor_type not in SUPPORTED_SENSOR_TYPES:
+            # Named from the XML before anything loads or any other check of the film (a radiance meter's 1x1
+            # film was refused first as too small for SSIM, its sensor only once that was fixed).
+            raise ValueError(f"scene file {spec.filename!r}: " + unsupported_sensor_message(spec.sensor_type))
+        return spec.with_lens(self.aperture, self.focus_distance)
 
     @cached_property
     def scene_identity(self):

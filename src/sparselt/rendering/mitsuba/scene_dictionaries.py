@@ -13,7 +13,7 @@ import re
 
 import numpy as np
 
-from ..scenes import Camera, Transform
+from ..scenes import Camera, Transform, unsupported_sensor_message
 from .runtime import modules
 
 
@@ -148,10 +148,7 @@ def camera_from_sensor(sensor):
 
     fov = read("x_fov", None)
     if fov is None:
-        kind = sensor_type(sensor)
-        raise ValueError(f"the scene's sensor is of type {kind!r}, not a perspective or thin-lens camera; sparselt "
-                         "samples the image plane and lens of those only: change the XML's <sensor type=...> to "
-                         "'perspective' or 'thinlens'")
+        raise ValueError(unsupported_sensor_message(sensor_type(sensor)))
     aperture = read("aperture_radius", None)
     focus = read("focus_distance", 1000.0)
     near = read("near_clip", 0.001)
