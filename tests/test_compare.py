@@ -5,10 +5,12 @@ Rendering tests use the real Cornell box at 16x16x4x4 through Mitsuba.
 
 import csv
 import dataclasses
+import gc
 import json
 import math
 import os
 import re
+import weakref
 
 import numpy as np
 import pytest
@@ -323,9 +325,6 @@ def test_a_timed_run_starts_after_the_last_runs_garbage_is_freed_by_a_young_coll
     """Before each timed run the harness frees what earlier runs left in reference cycles (so a run does not pay
     for them), and does so with a collection of the young generations: a full one scans every live object of
     the process (0.13 s per cell on a comparison's heap, measured)."""
-    import gc
-    import weakref
-
     class Cycle:
         def __init__(self):
             self.itself = self

@@ -17,6 +17,7 @@ from urllib.parse import urlparse
 
 from .checks import check_integer
 
+
 class WorkerDied(RuntimeError):
     """A task's worker died every time the task was tried (Dask's ``KilledWorker``: a segmentation fault in the
     renderer, or the system killing the worker for its memory). What had landed is kept; the message says so."""

@@ -230,5 +230,5 @@ def coarser_shape(grid_shape, largest):
     return None
 
 
-__all__ = ["FilmResolution", "GridMemory", "MethodSetup", "MinimumSpp", "Requirement", "ResolutionMultiple", "SupportedKind",
-           "ThinLens", "TileDividesGrid", "tiles_of"]
+__all__ = ["FilmResolution", "GridMemory", "MethodSetup", "MinimumSpp", "Requirement", "ResolutionMultiple",
+           "SupportedKind", "ThinLens", "TileDividesGrid", "tiles_of"]
